@@ -1,0 +1,1 @@
+"""acquisition: MAVLink links, mission transfer, the simulated vehicle, telemetry and geotagging."""

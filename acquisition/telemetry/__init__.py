@@ -1,0 +1,1 @@
+"""Readers of flight logs into the normalized tables of :mod:`acquisition.telemetry.model`."""

@@ -1,0 +1,84 @@
+"""Writing outputs without ever leaving a half-written file or folder behind.
+
+- :func:`atomic_write_bytes` / :func:`atomic_write_text`: one file, via a temporary file in
+  the same folder and ``os.replace``.
+- :func:`staged_output_dir`: a whole output folder, built in a temporary sibling folder and
+  moved into place only when everything in it was written.
+
+Nothing is overwritten unless the caller passes ``overwrite=True`` (the CLI's ``--overwrite``).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import shutil
+import tempfile
+from collections.abc import Iterator
+from pathlib import Path
+
+from .errors import OutputExistsError
+
+
+def atomic_write_bytes(path: str | os.PathLike[str], data: bytes, *, overwrite: bool = True) -> Path:
+    """Write ``data`` to ``path`` atomically (temporary file in the same folder, then rename)."""
+    target = Path(path)
+    if not overwrite and target.exists():
+        raise OutputExistsError(f"{target} exists; pass --overwrite to replace it")
+    target.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+    try:
+        with os.fdopen(fd, "wb") as handle:
+            handle.write(data)
+            handle.flush()
+            os.fsync(handle.fileno())
+        os.replace(tmp_name, target)
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(tmp_name)
+        raise
+    return target
+
+
+def atomic_write_text(
+    path: str | os.PathLike[str], text: str, *, overwrite: bool = True, encoding: str = "utf-8"
+) -> Path:
+    """Write ``text`` to ``path`` atomically."""
+    return atomic_write_bytes(path, text.encode(encoding), overwrite=overwrite)
+
+
+def check_output_dir(target: str | os.PathLike[str], *, overwrite: bool) -> Path:
+    """Refuse early when ``target`` holds files and ``overwrite`` is False."""
+    path = Path(target)
+    if path.exists() and not path.is_dir():
+        raise OutputExistsError(f"{path} exists and is not a folder; choose another output path")
+    if path.is_dir() and any(path.iterdir()) and not overwrite:
+        raise OutputExistsError(
+            f"output folder {path} is not empty; pass --overwrite to replace it or choose "
+            f"another folder with -o"
+        )
+    return path
+
+
+@contextlib.contextmanager
+def staged_output_dir(target: str | os.PathLike[str], *, overwrite: bool = False) -> Iterator[Path]:
+    """Yield a temporary folder; on success it replaces ``target`` as a whole.
+
+    On any exception the temporary folder is removed and ``target`` is left as it was.
+    """
+    final = check_output_dir(target, overwrite=overwrite).resolve()
+    final.parent.mkdir(parents=True, exist_ok=True)
+    staging = Path(tempfile.mkdtemp(prefix=f".{final.name}.", suffix=".staging", dir=final.parent))
+    try:
+        yield staging
+    except BaseException:
+        shutil.rmtree(staging, ignore_errors=True)
+        raise
+    if final.exists():
+        backup = Path(tempfile.mkdtemp(prefix=f".{final.name}.", suffix=".old", dir=final.parent))
+        os.rmdir(backup)
+        os.replace(final, backup)
+        os.replace(staging, final)
+        shutil.rmtree(backup, ignore_errors=True)
+    else:
+        os.replace(staging, final)

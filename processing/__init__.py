@@ -1,0 +1,1 @@
+"""processing: the field coverage check and the hand-off to reconstruction."""
