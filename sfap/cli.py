@@ -22,6 +22,12 @@ from . import __version__
 COMMANDS: dict[str, tuple[str, str]] = {
     "plan": ("plan", "Plan a survey mission from a mission spec (TOML)."),
     "cameras": ("cameras", "List the built-in cameras, or show one."),
+    "upload": ("upload", "Upload a mission (.plan/.waypoints) to an autopilot and verify it."),
+    "download": ("download", "Download the mission stored on an autopilot to a file."),
+    "clear": ("clear", "Clear the mission stored on an autopilot."),
+    "sim": ("sim", "Run a simulated vehicle (ArduPilot or PX4 flavour) on a MAVLink URL."),
+    "monitor": ("monitor", "Record camera triggers and telemetry during a flight."),
+    "geotag": ("geotag", "Geotag frames from the flight's own telemetry log."),
 }
 
 log = logging.getLogger("sfap")
