@@ -162,7 +162,7 @@ class Camera:
         """Ground footprint of a nadir frame over flat ground at ``height_agl_m``."""
         width_m = self.image_width_px * self.gsd_x_cm(height_agl_m) / 100.0
         height_m = self.image_height_px * self.gsd_y_cm(height_agl_m) / 100.0
-        if orientation is Orientation.LANDSCAPE:
+        if Orientation(orientation) is Orientation.LANDSCAPE:
             return Footprint(along_m=height_m, across_m=width_m)
         return Footprint(along_m=width_m, across_m=height_m)
 

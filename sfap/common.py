@@ -28,8 +28,9 @@ def _clean(value: Any) -> Any:
         return {k: _clean(v) for k, v in value.items()}
     if isinstance(value, list | tuple):
         return [_clean(v) for v in value]
-    if hasattr(value, "item") and callable(value.item):
-        return _clean(value.item())
+    item = getattr(value, "item", None)
+    if callable(item):  # numpy scalars
+        return _clean(item())
     return value
 
 
@@ -53,8 +54,9 @@ def echo_table(rows: list[tuple[str, str]], title: str | None = None) -> None:
 @contextmanager
 def progress(label: str, total: int, enabled: bool = True) -> Iterator[Callable[[int], None]]:
     """A progress bar on stderr; yields ``advance(n)`` for library callbacks."""
-    if not enabled or total <= 0:
+    stream = click.get_text_stream("stderr")
+    if not enabled or total <= 0 or not stream.isatty():
         yield lambda n: None
         return
-    with click.progressbar(length=total, label=label, file=click.get_text_stream("stderr")) as bar:
+    with click.progressbar(length=total, label=label, file=stream) as bar:
         yield bar.update

@@ -1,0 +1,385 @@
+"""map.png: a map of a :class:`~planner.plan.SurveyPlan` that a person reads at a glance.
+
+Drawn in the plan's local projected frame (its UTM zone), in metres east and north of home,
+with equal aspect: the area filled light green, exclusion zones hatched red, frame footprints
+as thin translucent outlines, camera-on segments coloured by pass kind, the transit path
+dashed, exposure stations as small dots, home, the entry of the first line with an arrow in
+its direction, a scale bar of a round length and a north arrow. The north arrow points to
+grid north of the UTM frame; the caption gives the angle to true north at home (meridian
+convergence).
+
+Large plans (hundreds of thousands of stations) are drawn with one collection per layer and
+evenly thinned footprints and stations; the legend says how many of how many are shown.
+matplotlib is used through its object API (``Figure`` with the Agg canvas), never pyplot, so
+no global state is touched and threads can render side by side.
+"""
+
+from __future__ import annotations
+
+import io
+import logging
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.collections import LineCollection, PolyCollection
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+from matplotlib.patches import Patch, PathPatch
+from matplotlib.path import Path as MplPath
+from mpl_toolkits.axes_grid1.anchored_artists import AnchoredSizeBar
+from numpy.typing import NDArray
+from shapely.geometry import MultiPolygon, Polygon
+
+from .errors import InputError
+from .outputs import atomic_write_bytes
+from .plan import PassKind, SurveyPlan
+
+log = logging.getLogger(__name__)
+
+#: Stations drawn as dots at most (evenly thinned beyond).
+DEFAULT_MAX_STATIONS = 20_000
+
+_PASS_COLOURS = {
+    PassKind.NADIR: "#1565c0",
+    PassKind.CROSSHATCH: "#7b1fa2",
+    PassKind.OBLIQUE: "#ef6c00",
+}
+_AREA_FACE = "#e3f1d4"
+_AREA_EDGE = "#2e7d32"
+_EXCLUSION = "#d32f2f"
+
+
+def scale_bar_length_m(span_m: float) -> float:
+    """The largest round length (1, 2 or 5 x 10^n m) at most a quarter of ``span_m``."""
+    if not (span_m > 0 and math.isfinite(span_m)):
+        return 1.0
+    target = span_m / 4.0
+    exponent = math.floor(math.log10(target))
+    for mantissa in (5.0, 2.0, 1.0):
+        length = mantissa * 10.0**exponent
+        if length <= target * (1 + 1e-9):
+            return length
+    return 10.0**exponent  # pragma: no cover - 1 x 10^n <= target by construction
+
+
+def _thin(n: int, max_count: int) -> NDArray[np.int64]:
+    """At most ``max_count`` indices of ``range(n)``, evenly spread."""
+    if n <= max_count:
+        return np.arange(n, dtype=np.int64)
+    if max_count <= 0:
+        return np.zeros(0, dtype=np.int64)
+    return np.unique(np.round(np.linspace(0, n - 1, max_count)).astype(np.int64))
+
+
+def _polygon_path(geom: Polygon | MultiPolygon, ox: float, oy: float) -> MplPath | None:
+    """A compound matplotlib path (exteriors and holes) of a polygon, shifted by -origin."""
+    parts = list(geom.geoms) if isinstance(geom, MultiPolygon) else [geom]
+    vertices: list[NDArray[np.float64]] = []
+    codes: list[NDArray[np.uint8]] = []
+    for part in parts:
+        if part.is_empty:
+            continue
+        for ring in (part.exterior, *part.interiors):
+            xy = np.asarray(ring.coords, dtype=np.float64) - (ox, oy)
+            c = np.full(len(xy), MplPath.LINETO, dtype=np.uint8)
+            c[0] = MplPath.MOVETO
+            c[-1] = MplPath.CLOSEPOLY
+            vertices.append(xy)
+            codes.append(c)
+    if not vertices:
+        return None
+    return MplPath(np.concatenate(vertices), np.concatenate(codes))
+
+
+def _shown(count: int, total: int, what: str) -> str:
+    if count == total:
+        return f"{what} (all {total:,})"
+    return f"{what} ({count:,} of {total:,}, evenly thinned)"
+
+
+def _grid_convergence_deg(plan: SurveyPlan) -> float:
+    """Angle from grid north to true north at home, degrees (positive: true north is east)."""
+    lon, lat = plan.home.lon_deg, plan.home.lat_deg
+    x0, y0 = plan.frame.to_xy(lon, lat)
+    x1, y1 = plan.frame.to_xy(lon, min(lat + 0.001, 89.999))
+    return math.degrees(math.atan2(float(x1) - float(x0), float(y1) - float(y0)))
+
+
+def render_map_figure(
+    plan: SurveyPlan,
+    *,
+    max_footprints: int = 4000,
+    max_stations: int = DEFAULT_MAX_STATIONS,
+) -> Figure:
+    """The map of ``plan`` as a matplotlib ``Figure`` on an Agg canvas (see :func:`render_map_png`)."""
+    if max_footprints < 0 or max_stations < 0:
+        raise InputError(
+            f"max_footprints = {max_footprints}, max_stations = {max_stations}: "
+            f"both must be 0 or more"
+        )
+    ox, oy = plan.home_xy_m
+    st = plan.stations
+    n = len(st)
+    kind_of_pass = {p.index: p.kind for p in plan.passes}
+
+    # extent: area, exclusions, path, footprints, home
+    boxes = [plan.area_xy.bounds] if not plan.area_xy.is_empty else []
+    boxes += [z.bounds for z in plan.exclusions_xy if not z.is_empty]
+    xs = [b[0] for b in boxes] + [b[2] for b in boxes] + [ox]
+    ys = [b[1] for b in boxes] + [b[3] for b in boxes] + [oy]
+    if len(plan.path_xy_m):
+        xs += [float(np.min(plan.path_xy_m[:, 0])), float(np.max(plan.path_xy_m[:, 0]))]
+        ys += [float(np.min(plan.path_xy_m[:, 1])), float(np.max(plan.path_xy_m[:, 1]))]
+    if n:
+        fp = st.footprint_xy_m
+        xs += [float(np.min(fp[..., 0])), float(np.max(fp[..., 0]))]
+        ys += [float(np.min(fp[..., 1])), float(np.max(fp[..., 1]))]
+    x0, x1 = min(xs) - ox, max(xs) - ox
+    y0, y1 = min(ys) - oy, max(ys) - oy
+    span = max(x1 - x0, y1 - y0, 10.0)
+    pad = 0.06 * span
+    x0, x1, y0, y1 = x0 - pad, x1 + pad, y0 - pad, y1 + pad
+
+    # a figure shaped like the map (within limits), room for title, legend and caption
+    aspect = (y1 - y0) / max(x1 - x0, 1e-9)
+    map_w_in = 9.0
+    map_h_in = float(np.clip(map_w_in * aspect, 4.5, 11.0))
+    fig = Figure(figsize=(map_w_in + 3.2, map_h_in + 1.6), dpi=100)
+    FigureCanvasAgg(fig)
+    ax = fig.add_axes(
+        (0.7 / (map_w_in + 3.2), 1.0 / (map_h_in + 1.6), map_w_in / (map_w_in + 3.2), map_h_in / (map_h_in + 1.6))
+    )
+    ax.set_facecolor("white")
+    handles: list[Patch | Line2D] = []
+
+    area_path = _polygon_path(plan.area_xy, ox, oy)
+    if area_path is not None:
+        ax.add_patch(
+            PathPatch(area_path, facecolor=_AREA_FACE, edgecolor=_AREA_EDGE, lw=1.2, zorder=1)
+        )
+    handles.append(Patch(facecolor=_AREA_FACE, edgecolor=_AREA_EDGE, label="area to cover"))
+    if plan.exclusions_xy:
+        for zone in plan.exclusions_xy:
+            zone_path = _polygon_path(zone, ox, oy)
+            if zone_path is not None:
+                ax.add_patch(
+                    PathPatch(
+                        zone_path,
+                        facecolor=(0.83, 0.18, 0.18, 0.10),
+                        edgecolor=_EXCLUSION,
+                        hatch="///",
+                        lw=1.2,
+                        zorder=2,
+                    )
+                )
+        handles.append(
+            Patch(
+                facecolor=(0.83, 0.18, 0.18, 0.10),
+                edgecolor=_EXCLUSION,
+                hatch="///",
+                label=f"exclusion zones and holes ({len(plan.exclusions_xy)})",
+            )
+        )
+
+    # footprints: thin translucent outlines, coloured by pass kind
+    fp_index = _thin(n, max_footprints)
+    if fp_index.size:
+        fp_kinds = [kind_of_pass.get(int(p), PassKind.NADIR) for p in st.pass_index[fp_index]]
+        fp_colours = [_PASS_COLOURS[k] for k in fp_kinds]
+        ax.add_collection(
+            PolyCollection(
+                st.footprint_xy_m[fp_index] - (ox, oy),
+                closed=True,
+                facecolors="none",
+                edgecolors=fp_colours,
+                linewidths=0.35,
+                alpha=0.35,
+                zorder=3,
+            )
+        )
+        handles.append(
+            Patch(
+                facecolor="none",
+                edgecolor="#607d8b",
+                lw=0.6,
+                label=_shown(int(fp_index.size), n, "frame footprints"),
+            )
+        )
+
+    # transit path (dashed), then the camera-on segments over it
+    if len(plan.path_xy_m) >= 2:
+        ax.plot(
+            plan.path_xy_m[:, 0] - ox,
+            plan.path_xy_m[:, 1] - oy,
+            color="#424242",
+            lw=0.8,
+            ls=(0, (4, 3)),
+            zorder=4,
+        )
+        handles.append(Line2D([], [], color="#424242", lw=0.8, ls=(0, (4, 3)), label="flight path"))
+    kinds_drawn: dict[PassKind, int] = {}
+    for p in plan.passes:
+        if not p.lines:
+            continue
+        segments = np.array([(ln.start_xy_m, ln.end_xy_m) for ln in p.lines], dtype=float)
+        ax.add_collection(
+            LineCollection(
+                segments - (ox, oy), colors=_PASS_COLOURS[p.kind], linewidths=1.6, zorder=5
+            )
+        )
+        kinds_drawn[p.kind] = kinds_drawn.get(p.kind, 0) + len(p.lines)
+    for kind, count in kinds_drawn.items():
+        handles.append(
+            Line2D([], [], color=_PASS_COLOURS[kind], lw=1.6, label=f"camera on, {kind.value} ({count} lines)")
+        )
+
+    st_index = _thin(n, max_stations)
+    if st_index.size:
+        ax.scatter(
+            st.x_m[st_index] - ox,
+            st.y_m[st_index] - oy,
+            s=3 if st_index.size > 2000 else 6,
+            c="#212121",
+            linewidths=0,
+            zorder=6,
+        )
+        handles.append(
+            Line2D(
+                [], [], ls="none", marker="o", ms=3, color="#212121",
+                label=_shown(int(st_index.size), n, "exposure stations"),
+            )
+        )
+
+    # home, entry and the direction of the first line
+    ax.plot([0.0], [0.0], marker="^", ms=12, color="#ffd600", mec="black", mew=1.2, ls="none", zorder=8)
+    handles.append(
+        Line2D([], [], marker="^", ms=10, color="#ffd600", mec="black", ls="none", label="home (0, 0)")
+    )
+    if plan.passes and plan.passes[0].lines:
+        first = plan.passes[0].lines[0]
+        ex, ey = first.entry_xy_m[0] - ox, first.entry_xy_m[1] - oy
+        h = math.radians(first.heading_deg)
+        arrow_m = 0.08 * span
+        ax.plot([ex], [ey], marker="o", ms=9, color="#00c853", mec="black", mew=1.0, ls="none", zorder=8)
+        ax.annotate(
+            "",
+            xy=(ex + arrow_m * math.sin(h), ey + arrow_m * math.cos(h)),
+            xytext=(ex, ey),
+            arrowprops={"arrowstyle": "-|>", "color": "#00c853", "lw": 2.2, "mutation_scale": 16},
+            zorder=8,
+        )
+        handles.append(
+            Line2D(
+                [], [], marker="o", ms=8, color="#00c853", mec="black", ls="none",
+                label=f"entry, first line heading {first.heading_deg:.0f} deg",
+            )
+        )
+
+    ax.set_xlim(x0, x1)
+    ax.set_ylim(y0, y1)
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel("metres east of home (grid)")
+    ax.set_ylabel("metres north of home (grid)")
+    ax.grid(True, color="#eeeeee", lw=0.6, zorder=0)
+    ax.set_axisbelow(True)
+    ax.ticklabel_format(useOffset=False, style="plain")
+
+    # scale bar and north arrow
+    bar_m = scale_bar_length_m(x1 - x0)
+    bar_label = f"{bar_m / 1000:g} km" if bar_m >= 1000 else f"{bar_m:g} m"
+    ax.add_artist(
+        AnchoredSizeBar(
+            ax.transData,
+            bar_m,
+            bar_label,
+            loc="lower right",
+            pad=0.6,
+            sep=4,
+            frameon=True,
+            size_vertical=(y1 - y0) * 0.006,
+            color="black",
+        )
+    )
+    ax.annotate(
+        "N",
+        xy=(0.95, 0.96),
+        xytext=(0.95, 0.84),
+        xycoords="axes fraction",
+        ha="center",
+        va="top",
+        fontsize=13,
+        fontweight="bold",
+        arrowprops={"arrowstyle": "-|>", "color": "black", "lw": 2.0, "mutation_scale": 18},
+        zorder=9,
+    )
+
+    s = plan.summary
+    fig.suptitle(plan.name, x=0.02, ha="left", fontsize=14, fontweight="bold")
+    fig.text(
+        0.02,
+        1.0 - 0.62 / (map_h_in + 1.6),
+        f"GSD {s.gsd_cm:.2f} cm  |  {s.altitude_agl_m:.1f} m above ground  |  "
+        f"{s.line_count:,} lines in {s.pass_count} pass{'es' if s.pass_count != 1 else ''}  |  "
+        f"{s.photo_count:,} photos  |  {s.area_m2 / 10_000:,.2f} ha  |  "
+        f"{s.flight_distance_m / 1000:,.1f} km, {s.flight_time_s / 60:,.0f} min",
+        ha="left",
+        fontsize=10,
+    )
+    epsg = plan.frame.epsg
+    crs_name = f"EPSG:{epsg} ({plan.frame.crs.name})" if epsg else plan.frame.crs.name
+    fig.text(
+        0.02,
+        0.2 / (map_h_in + 1.6),
+        f"Grid: {crs_name}, metres from home. The north arrow points to grid north; "
+        f"true north is {abs(_grid_convergence_deg(plan)):.2f} deg "
+        f"{'east' if _grid_convergence_deg(plan) >= 0 else 'west'} of it at home.",
+        ha="left",
+        fontsize=8,
+        color="#424242",
+    )
+    ax.legend(
+        handles=handles,
+        loc="upper left",
+        bbox_to_anchor=(1.01, 1.0),
+        fontsize=8,
+        frameon=False,
+        borderaxespad=0.0,
+    )
+    return fig
+
+
+def map_png_bytes(
+    plan: SurveyPlan,
+    *,
+    max_footprints: int = 4000,
+    max_stations: int = DEFAULT_MAX_STATIONS,
+    dpi: int = 130,
+) -> bytes:
+    """The map of ``plan`` as PNG bytes (see :func:`render_map_png`)."""
+    fig = render_map_figure(plan, max_footprints=max_footprints, max_stations=max_stations)
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=dpi, facecolor="white")
+    return buffer.getvalue()
+
+
+def render_map_png(
+    plan: SurveyPlan,
+    path: str | os.PathLike[str],
+    *,
+    max_footprints: int = 4000,
+    max_stations: int = DEFAULT_MAX_STATIONS,
+    dpi: int = 130,
+) -> Path:
+    """Render map.png of ``plan`` and write it atomically; returns the path written.
+
+    ``max_footprints`` / ``max_stations``: frame footprints and station dots drawn at most,
+    evenly thinned beyond (the legend says how many of how many are shown). ``dpi``: pixels
+    per inch of the PNG (the figure is about 12 inches wide).
+    """
+    data = map_png_bytes(plan, max_footprints=max_footprints, max_stations=max_stations, dpi=dpi)
+    written = atomic_write_bytes(path, data)
+    log.debug("wrote map: %s (%d bytes)", written, len(data))
+    return written

@@ -1,0 +1,311 @@
+"""The mission spec: a TOML file that describes one survey (stdlib tomllib).
+
+Paths in the file are relative to the file. Unknown keys are errors that list the valid keys;
+every value is checked against its range with a message that names the key and the fix.
+See missions/*.toml for examples and README.md for every key.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from collections.abc import Mapping
+from dataclasses import dataclass
+from enum import StrEnum
+from pathlib import Path
+from typing import Any
+
+from .camera import Camera, Orientation
+from .errors import SpecError
+from .mission import Autopilot, VehicleType
+
+
+class TriggerMode(StrEnum):
+    DISTANCE = "distance"  # DO_SET_CAM_TRIGG_DIST along each line
+    HOVER = "hover"  # stop and shoot at every station
+
+
+@dataclass(frozen=True, kw_only=True)
+class ObliqueSpec:
+    """Convergent oblique passes: the camera tilted ``tilt_deg`` off nadir toward each heading."""
+
+    tilt_deg: float
+    headings_deg: tuple[float, ...]
+
+
+@dataclass(frozen=True, kw_only=True)
+class SurveySpec:
+    gsd_cm: float | None
+    altitude_agl_m: float | None
+    front_overlap_pct: float
+    side_overlap_pct: float
+    speed_m_s: float
+    direction_deg: float | None  # None: "auto"
+    crosshatch: bool
+    turnaround_m: float
+    trigger: TriggerMode
+    oblique: tuple[ObliqueSpec, ...]
+    adjust_speed: bool  # lower the speed to the highest safe one instead of refusing
+    max_blur_px: float
+    transit_speed_m_s: float | None
+    hover_hold_s: float
+    exclusion_clearance_m: float
+    oblique_front_overlap_pct: float | None
+    oblique_side_overlap_pct: float | None
+
+
+@dataclass(frozen=True, kw_only=True)
+class VehicleSpec:
+    type: VehicleType
+    home_lat_deg: float | None
+    home_lon_deg: float | None
+    home_alt_amsl_m: float
+    takeoff_alt_m: float
+    max_alt_agl_m: float
+    autopilot: Autopilot
+    climb_rate_m_s: float
+
+
+@dataclass(frozen=True, kw_only=True)
+class MissionSpec:
+    name: str
+    source: Path  # the TOML file
+    area_path: Path
+    exclude_paths: tuple[Path, ...]
+    camera: Camera
+    orientation: Orientation
+    survey: SurveySpec
+    vehicle: VehicleSpec
+
+
+_TOP_KEYS = {"name", "area", "exclude", "camera", "survey", "vehicle"}
+_SURVEY_KEYS = {
+    "gsd_cm", "altitude_agl_m", "front_overlap_pct", "side_overlap_pct", "speed_m_s",
+    "direction_deg", "crosshatch", "turnaround_m", "trigger", "oblique", "adjust_speed",
+    "max_blur_px", "transit_speed_m_s", "hover_hold_s", "exclusion_clearance_m",
+    "oblique_front_overlap_pct", "oblique_side_overlap_pct",
+}  # fmt: skip
+_OBLIQUE_KEYS = {"tilt_deg", "headings_deg"}
+_VEHICLE_KEYS = {
+    "type", "home", "home_alt_amsl_m", "takeoff_alt_m", "max_alt_agl_m", "autopilot",
+    "climb_rate_m_s",
+}  # fmt: skip
+
+
+def load_spec(path: str | Path) -> MissionSpec:
+    """Read and validate a mission spec."""
+    file = Path(path)
+    if not file.is_file():
+        raise SpecError(f"mission spec {file} does not exist")
+    try:
+        data = tomllib.loads(file.read_text(encoding="utf-8"))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as error:
+        raise SpecError(f"{file} is not valid TOML: {error}") from None
+    return parse_spec(data, file)
+
+
+def parse_spec(data: Mapping[str, Any], file: Path) -> MissionSpec:
+    """Validate the parsed TOML of a spec; ``file`` anchors relative paths and messages."""
+    # Imported here: camera_db loads the camera database, which only specs need.
+    from .camera_db import camera_from_mapping
+
+    where = str(file)
+    _check_keys(data, _TOP_KEYS, where, "the top level")
+    base = file.parent
+    name = _get(data, "name", str, where, default=file.stem)
+    area_value = _get(data, "area", str, where)
+    area_path = (base / area_value).resolve()
+    exclude_value = data.get("exclude", [])
+    if isinstance(exclude_value, str):
+        exclude_value = [exclude_value]
+    if not isinstance(exclude_value, list) or not all(isinstance(v, str) for v in exclude_value):
+        raise SpecError(f"{where}: exclude must be a list of file names, got {exclude_value!r}")
+    exclude_paths = tuple((base / v).resolve() for v in exclude_value)
+
+    camera_data = data.get("camera")
+    if not isinstance(camera_data, dict):
+        raise SpecError(f"{where}: a [camera] table is required (model = \"...\" or the sensor fields)")
+    camera_fields = dict(camera_data)
+    orientation_text = camera_fields.pop("orientation", "landscape")
+    try:
+        orientation = Orientation(orientation_text)
+    except ValueError:
+        raise SpecError(
+            f"{where}: camera.orientation = {orientation_text!r}; use one of "
+            f"{', '.join(o.value for o in Orientation)}"
+        ) from None
+    camera = camera_from_mapping(camera_fields, where=f"{where} [camera]")
+
+    survey = _parse_survey(data.get("survey"), where)
+    vehicle = _parse_vehicle(data.get("vehicle", {}), where)
+    return MissionSpec(
+        name=name,
+        source=file.resolve(),
+        area_path=area_path,
+        exclude_paths=exclude_paths,
+        camera=camera,
+        orientation=orientation,
+        survey=survey,
+        vehicle=vehicle,
+    )
+
+
+def _parse_survey(value: Any, where: str) -> SurveySpec:
+    if not isinstance(value, dict):
+        raise SpecError(f"{where}: a [survey] table is required (gsd_cm or altitude_agl_m, overlaps)")
+    section = f"{where} [survey]"
+    _check_keys(value, _SURVEY_KEYS, section, "[survey]")
+    gsd = _opt_number(value, "gsd_cm", section, 0.05, 100.0)
+    alt = _opt_number(value, "altitude_agl_m", section, 2.0, 5000.0)
+    if (gsd is None) == (alt is None):
+        raise SpecError(f"{section}: give exactly one of gsd_cm and altitude_agl_m")
+    direction: float | None
+    raw_direction = value.get("direction_deg", "auto")
+    if raw_direction == "auto":
+        direction = None
+    elif isinstance(raw_direction, int | float) and not isinstance(raw_direction, bool):
+        direction = float(raw_direction) % 360.0
+    else:
+        raise SpecError(
+            f"{section}: direction_deg = {raw_direction!r}; use \"auto\" or a bearing in degrees"
+        )
+    trigger_text = value.get("trigger", "distance")
+    try:
+        trigger = TriggerMode(trigger_text)
+    except ValueError:
+        raise SpecError(
+            f"{section}: trigger = {trigger_text!r}; use one of "
+            f"{', '.join(t.value for t in TriggerMode)}"
+        ) from None
+    obliques_raw = value.get("oblique", [])
+    if not isinstance(obliques_raw, list):
+        raise SpecError(f"{section}: oblique must be an array of tables ([[survey.oblique]])")
+    obliques = tuple(_parse_oblique(o, f"{section} oblique {i + 1}") for i, o in enumerate(obliques_raw))
+    speed = _number(value, "speed_m_s", section, 0.5, 40.0, default=5.0)
+    transit = _opt_number(value, "transit_speed_m_s", section, 0.5, 40.0)
+    return SurveySpec(
+        gsd_cm=gsd,
+        altitude_agl_m=alt,
+        front_overlap_pct=_number(value, "front_overlap_pct", section, 0.0, 95.0, default=80.0),
+        side_overlap_pct=_number(value, "side_overlap_pct", section, 0.0, 95.0, default=70.0),
+        speed_m_s=speed,
+        direction_deg=direction,
+        crosshatch=_get(value, "crosshatch", bool, section, default=False),
+        turnaround_m=_number(value, "turnaround_m", section, 0.0, 500.0, default=10.0),
+        trigger=trigger,
+        oblique=obliques,
+        adjust_speed=_get(value, "adjust_speed", bool, section, default=False),
+        max_blur_px=_number(value, "max_blur_px", section, 0.05, 10.0, default=0.5),
+        transit_speed_m_s=transit,
+        hover_hold_s=_number(value, "hover_hold_s", section, 0.0, 60.0, default=2.0),
+        exclusion_clearance_m=_number(value, "exclusion_clearance_m", section, 0.0, 200.0, default=2.0),
+        oblique_front_overlap_pct=_opt_number(value, "oblique_front_overlap_pct", section, 0.0, 95.0),
+        oblique_side_overlap_pct=_opt_number(value, "oblique_side_overlap_pct", section, 0.0, 95.0),
+    )
+
+
+def _parse_oblique(value: Any, where: str) -> ObliqueSpec:
+    if not isinstance(value, dict):
+        raise SpecError(f"{where}: must be a table with tilt_deg and headings_deg")
+    _check_keys(value, _OBLIQUE_KEYS, where, "[[survey.oblique]]")
+    tilt = _number(value, "tilt_deg", where, 5.0, 60.0)
+    headings = value.get("headings_deg", [0, 90, 180, 270])
+    if (
+        not isinstance(headings, list)
+        or not headings
+        or not all(isinstance(h, int | float) and not isinstance(h, bool) for h in headings)
+    ):
+        raise SpecError(f"{where}: headings_deg must be a non-empty list of bearings in degrees")
+    return ObliqueSpec(tilt_deg=tilt, headings_deg=tuple(float(h) % 360.0 for h in headings))
+
+
+def _parse_vehicle(value: Any, where: str) -> VehicleSpec:
+    if not isinstance(value, dict):
+        raise SpecError(f"{where}: [vehicle] must be a table")
+    section = f"{where} [vehicle]"
+    _check_keys(value, _VEHICLE_KEYS, section, "[vehicle]")
+    type_text = value.get("type", "multirotor")
+    try:
+        vehicle_type = VehicleType(type_text)
+    except ValueError:
+        raise SpecError(
+            f"{section}: type = {type_text!r}; use one of {', '.join(v.value for v in VehicleType)}"
+        ) from None
+    autopilot_text = value.get("autopilot", "ardupilot")
+    try:
+        autopilot = Autopilot(autopilot_text)
+    except ValueError:
+        raise SpecError(
+            f"{section}: autopilot = {autopilot_text!r}; use one of "
+            f"{', '.join(a.value for a in Autopilot)}"
+        ) from None
+    home = value.get("home")
+    home_lat = home_lon = None
+    if home is not None:
+        if (
+            not isinstance(home, list)
+            or len(home) != 2
+            or not all(isinstance(v, int | float) and not isinstance(v, bool) for v in home)
+        ):
+            raise SpecError(f"{section}: home must be [lat, lon] in degrees, got {home!r}")
+        home_lat, home_lon = float(home[0]), float(home[1])
+        if not (-90 <= home_lat <= 90 and -180 <= home_lon <= 180):
+            raise SpecError(f"{section}: home = {home!r} is not [lat, lon] in degrees")
+    max_alt = _number(value, "max_alt_agl_m", section, 1.0, 10000.0, default=120.0)
+    takeoff = _number(value, "takeoff_alt_m", section, 1.0, 10000.0, default=30.0)
+    if takeoff > max_alt:
+        raise SpecError(
+            f"{section}: takeoff_alt_m = {takeoff} is above max_alt_agl_m = {max_alt}; lower it"
+        )
+    return VehicleSpec(
+        type=vehicle_type,
+        home_lat_deg=home_lat,
+        home_lon_deg=home_lon,
+        home_alt_amsl_m=_number(value, "home_alt_amsl_m", section, -500.0, 9000.0, default=0.0),
+        takeoff_alt_m=takeoff,
+        max_alt_agl_m=max_alt,
+        autopilot=autopilot,
+        climb_rate_m_s=_number(value, "climb_rate_m_s", section, 0.2, 20.0, default=2.5),
+    )
+
+
+def _check_keys(data: Mapping[str, Any], valid: set[str], where: str, table: str) -> None:
+    unknown = sorted(set(data) - valid)
+    if unknown:
+        raise SpecError(
+            f"{where}: unknown key{'s' if len(unknown) > 1 else ''} {', '.join(unknown)} in "
+            f"{table}; valid keys: {', '.join(sorted(valid))}"
+        )
+
+
+def _get(data: Mapping[str, Any], key: str, kind: type, where: str, default: Any = ...) -> Any:
+    if key not in data:
+        if default is ...:
+            raise SpecError(f"{where}: {key} is required")
+        return default
+    value = data[key]
+    if kind is not bool and isinstance(value, bool) or not isinstance(value, kind):
+        raise SpecError(f"{where}: {key} = {value!r} must be a {kind.__name__}")
+    return value
+
+
+def _number(
+    data: Mapping[str, Any], key: str, where: str, low: float, high: float, default: Any = ...
+) -> float:
+    value = _opt_number(data, key, where, low, high)
+    if value is None:
+        if default is ...:
+            raise SpecError(f"{where}: {key} is required ({low:g} to {high:g})")
+        return float(default)
+    return value
+
+
+def _opt_number(data: Mapping[str, Any], key: str, where: str, low: float, high: float) -> float | None:
+    if key not in data:
+        return None
+    value = data[key]
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+        raise SpecError(f"{where}: {key} = {value!r} must be a number from {low:g} to {high:g}")
+    if not (low <= value <= high):
+        raise SpecError(f"{where}: {key} = {value:g} is outside {low:g} to {high:g}")
+    return float(value)

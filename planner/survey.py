@@ -1,0 +1,351 @@
+"""Planning a survey: from a mission spec to a :class:`~planner.plan.SurveyPlan`.
+
+The steps, each in its own module:
+1. area: load the polygons, remove holes and exclusions (planner.area), project into the
+   area's UTM zone (planner.geo);
+2. exposure: height from the GSD (Eq. 3-4), the frame's ground rectangle per pass, air base and
+   line spacing (Eq. 3-5), speed checks (Eq. 3-6, blur) (planner.exposure, planner.footprint);
+3. lines: camera-on segments per pass with guaranteed edge coverage (planner.lines);
+4. route: boustrophedon order from the corner nearest the vehicle, transits around no-fly
+   zones (planner.route);
+5. mission: the items an autopilot flies, and every station exactly where the trigger plan
+   fires it (planner.mission_builder).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import shapely
+from shapely.geometry import MultiPolygon, Polygon
+
+from . import exposure as ex
+from .area import build_area, check_area_size, load_polygons
+from .camera import Orientation
+from .errors import PlanningError, SpecError
+from .footprint import near_far_gsd_cm, tilted_gsd_cm
+from .geo import LocalFrame, geodesic_area_m2
+from .lines import layout_pass
+from .mission import HomePosition, VehicleType
+from .mission_builder import PassPlan, build_mission
+from .plan import FlightPass, PassKind, SurveyPlan
+from .spec import MissionSpec, TriggerMode
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True, kw_only=True)
+class _PassDef:
+    kind: PassKind
+    name: str
+    direction_deg: float
+    tilt_deg: float
+    look_heading_deg: float | None
+    front_overlap_pct: float
+    side_overlap_pct: float
+
+
+def plan_survey(spec: MissionSpec) -> SurveyPlan:
+    """Plan the survey a spec describes. Raises SfapError subclasses with the fix."""
+    survey = spec.survey
+    vehicle = spec.vehicle
+    camera = spec.camera
+    warnings: list[str] = []
+
+    if vehicle.type is VehicleType.FIXED_WING and survey.trigger is TriggerMode.HOVER:
+        raise SpecError(
+            f"{spec.source}: trigger = \"hover\" needs a vehicle that can hover; use "
+            f"trigger = \"distance\" for a fixed-wing"
+        )
+
+    # 1. area --------------------------------------------------------------------------------------
+    polygons = load_polygons(spec.area_path)
+    exclusions = [p for path in spec.exclude_paths for p in load_polygons(path)]
+    area_lonlat, zones_lonlat = build_area(polygons, exclusions)
+    if area_lonlat.is_empty:
+        raise SpecError(f"{spec.area_path}: nothing is left of the area once the exclusions are removed")
+    centroid = area_lonlat.centroid
+    frame = LocalFrame.utm_for(centroid.x, centroid.y)
+    area_m2 = geodesic_area_m2(area_lonlat)
+    check_area_size(area_m2, str(spec.area_path))
+    area_xy = frame.geometry_to_xy(area_lonlat)
+    zones_xy = tuple(frame.geometry_to_xy(z) for z in zones_lonlat)
+    assert isinstance(area_xy, Polygon | MultiPolygon)
+
+    # 2. height and GSD ----------------------------------------------------------------------------
+    if survey.altitude_agl_m is not None:
+        alt_agl_m = survey.altitude_agl_m
+    else:
+        assert survey.gsd_cm is not None
+        alt_agl_m = camera.height_for_gsd_m(survey.gsd_cm)
+    if alt_agl_m > vehicle.max_alt_agl_m + 1e-9:
+        needed = f"{alt_agl_m:.1f} m above ground"
+        raise PlanningError(
+            f"{spec.source}: that GSD needs a flying height of {needed}, above the vehicle limit "
+            f"max_alt_agl_m = {vehicle.max_alt_agl_m:g} m; ask for a finer gsd_cm (at most "
+            f"{camera.gsd_cm(vehicle.max_alt_agl_m):.2f} cm at the limit) or raise the limit"
+        )
+    gsd_cm = camera.gsd_cm(alt_agl_m)
+
+    # home
+    if vehicle.home_lat_deg is not None and vehicle.home_lon_deg is not None:
+        home = HomePosition(
+            lat_deg=vehicle.home_lat_deg, lon_deg=vehicle.home_lon_deg, alt_amsl_m=vehicle.home_alt_amsl_m
+        )
+        hx, hy = frame.to_xy(home.lon_deg, home.lat_deg)
+        home_xy = (float(hx), float(hy))
+        if math.dist(home_xy, (area_xy.centroid.x, area_xy.centroid.y)) > 50_000:
+            raise SpecError(
+                f"{spec.source}: home {vehicle.home_lat_deg}, {vehicle.home_lon_deg} is more than "
+                f"50 km from the area; home is [lat, lon]: check the order"
+            )
+    else:
+        home_xy = _default_home(area_xy)
+        lon, lat = frame.to_lonlat(*home_xy)
+        home = HomePosition(lat_deg=float(lat), lon_deg=float(lon), alt_amsl_m=vehicle.home_alt_amsl_m)
+    for zone in zones_xy:
+        if zone.contains(shapely.Point(home_xy)):
+            raise SpecError(f"{spec.source}: home lies inside an exclusion zone; move it out")
+
+    # 3. passes --------------------------------------------------------------------------------
+    direction = survey.direction_deg if survey.direction_deg is not None else auto_direction_deg(area_xy)
+    pass_defs = _pass_definitions(spec, direction)
+
+    blocked_xy = (
+        shapely.union_all([z.buffer(survey.exclusion_clearance_m) for z in zones_xy]) if zones_xy else None
+    )
+    speed_m_s = survey.speed_m_s
+    pass_plans: list[PassPlan] = []
+    for index, pdef in enumerate(pass_defs):
+        up = (
+            pdef.look_heading_deg
+            if pdef.look_heading_deg is not None
+            else ex.up_bearing_deg(pdef.direction_deg, spec.orientation)
+        )
+        rect = ex.frame_rectangle(camera, alt_agl_m, pdef.direction_deg, up, pdef.tilt_deg)
+        trigger_m = ex.air_base_m(rect.along_m, pdef.front_overlap_pct)
+        spacing_m = ex.air_base_m(rect.across_m, pdef.side_overlap_pct)
+        speed_m_s = _check_speed(spec, pdef, trigger_m, alt_agl_m, speed_m_s, warnings)
+        area_uv = _rotate(area_xy, pdef.direction_deg)
+        blocked_uv = _rotate(blocked_xy, pdef.direction_deg) if blocked_xy is not None else None
+        layout = layout_pass(area_uv, blocked_uv, rect, trigger_m, spacing_m)
+        if layout.uncovered_m2 > 0:
+            warnings.append(
+                f"{pdef.name}: {layout.uncovered_m2:.0f} m2 beside exclusion zones cannot be seen "
+                f"without flying over them"
+            )
+        near_gsd, far_gsd = near_far_gsd_cm(camera, alt_agl_m, pdef.tilt_deg)
+        pass_plans.append(
+            PassPlan(
+                index=index,
+                kind=pdef.kind,
+                name=pdef.name,
+                direction_deg=pdef.direction_deg,
+                tilt_deg=pdef.tilt_deg,
+                look_heading_deg=pdef.look_heading_deg,
+                rect=rect,
+                trigger_distance_m=trigger_m,
+                line_spacing_m=spacing_m,
+                segments=layout.segments,
+                near_gsd_cm=near_gsd,
+                far_gsd_cm=far_gsd,
+                centre_gsd_cm=(
+                    gsd_cm if pdef.tilt_deg == 0 else max(tilted_gsd_cm(camera, alt_agl_m, pdef.tilt_deg))
+                ),
+            )
+        )
+
+    # 4-5. route, mission and stations ------------------------------------------------------------
+    built = build_mission(
+        spec=spec,
+        frame=frame,
+        home=home,
+        home_xy=home_xy,
+        alt_agl_m=alt_agl_m,
+        speed_m_s=speed_m_s,
+        passes=pass_plans,
+        zones_xy=zones_xy,
+    )
+
+    passes = tuple(
+        FlightPass(
+            index=p.index,
+            kind=p.kind,
+            name=p.name,
+            direction_deg=p.direction_deg,
+            tilt_deg=p.tilt_deg,
+            look_heading_deg=p.look_heading_deg,
+            alt_agl_m=alt_agl_m,
+            line_spacing_m=p.line_spacing_m,
+            trigger_distance_m=p.trigger_distance_m,
+            lines=built.lines[p.index],
+            near_gsd_cm=p.near_gsd_cm,
+            far_gsd_cm=p.far_gsd_cm,
+        )
+        for p in pass_plans
+    )
+
+    from .summary import summarize  # the summary reads the whole plan
+
+    nadir = pass_plans[0]
+    summary = summarize(
+        spec=spec,
+        frame=frame,
+        area_m2=area_m2,
+        alt_agl_m=alt_agl_m,
+        speed_m_s=speed_m_s,
+        nadir=nadir,
+        passes=pass_plans,
+        built=built,
+        warnings=tuple(warnings),
+    )
+    for w in warnings:
+        log.warning(w)
+    return SurveyPlan(
+        name=spec.name,
+        camera=camera,
+        orientation=spec.orientation,
+        frame=frame,
+        area_xy=area_xy,
+        area_lonlat=area_lonlat,
+        exclusions_xy=zones_xy,
+        exclusions_lonlat=zones_lonlat,
+        home=home,
+        home_xy_m=home_xy,
+        passes=passes,
+        stations=built.stations,
+        path_xy_m=built.path_xy_m,
+        path_lonlat_deg=built.path_lonlat_deg,
+        mission=built.mission,
+        summary=summary,
+        warnings=tuple(warnings),
+    )
+
+
+def auto_direction_deg(area_xy: Polygon | MultiPolygon) -> float:
+    """Bearing of the lines that minimizes their number: parallel to the edge of the convex hull
+    across which the area is narrowest (rotating calipers); ties go to the longest edge."""
+    hull = area_xy.convex_hull
+    coords = np.asarray(hull.exterior.coords)
+    best: tuple[float, float, float] = (math.inf, 0.0, 0.0)  # (width, -edge length, bearing)
+    for (x0, y0), (x1, y1) in zip(coords[:-1], coords[1:], strict=True):
+        length = math.hypot(x1 - x0, y1 - y0)
+        if length < 1e-6:
+            continue
+        bearing = math.degrees(math.atan2(x1 - x0, y1 - y0)) % 180.0
+        _, v = ex.to_pass_frame(coords[:, 0], coords[:, 1], bearing)
+        width = float(v.max() - v.min())
+        key = (round(width, 3), -length, bearing)
+        if key < best:
+            best = key
+    return best[2]
+
+
+def _default_home(area_xy: Polygon | MultiPolygon) -> tuple[float, float]:
+    """No home given: the area's vertex nearest the south-west corner of its bounding box."""
+    min_x, min_y, _, _ = area_xy.bounds
+    polys = getattr(area_xy, "geoms", [area_xy])
+    vertices = np.vstack([np.asarray(p.exterior.coords) for p in polys])
+    k = int(np.argmin(np.hypot(vertices[:, 0] - min_x, vertices[:, 1] - min_y)))
+    return float(vertices[k, 0]), float(vertices[k, 1])
+
+
+def _pass_definitions(spec: MissionSpec, direction: float) -> list[_PassDef]:
+    s = spec.survey
+    defs = [
+        _PassDef(
+            kind=PassKind.NADIR,
+            name="nadir",
+            direction_deg=direction % 180.0,
+            tilt_deg=0.0,
+            look_heading_deg=None,
+            front_overlap_pct=s.front_overlap_pct,
+            side_overlap_pct=s.side_overlap_pct,
+        )
+    ]
+    if s.crosshatch:
+        defs.append(
+            _PassDef(
+                kind=PassKind.CROSSHATCH,
+                name="crosshatch",
+                direction_deg=(direction + 90.0) % 180.0,
+                tilt_deg=0.0,
+                look_heading_deg=None,
+                front_overlap_pct=s.front_overlap_pct,
+                side_overlap_pct=s.side_overlap_pct,
+            )
+        )
+    for oblique in s.oblique:
+        for heading in oblique.headings_deg:
+            # Lines parallel or perpendicular to the look direction (the frame's trapezoid is then
+            # symmetric about the line axis), whichever is closer to the nadir direction.
+            options = [heading % 180.0, (heading + 90.0) % 180.0]
+            line_dir = min(options, key=lambda d: min(abs(d - direction % 180.0), 180 - abs(d - direction % 180.0)))
+            defs.append(
+                _PassDef(
+                    kind=PassKind.OBLIQUE,
+                    name=f"oblique {oblique.tilt_deg:g} deg looking {heading:g} deg",
+                    direction_deg=line_dir,
+                    tilt_deg=oblique.tilt_deg,
+                    look_heading_deg=heading,
+                    front_overlap_pct=(
+                        s.oblique_front_overlap_pct
+                        if s.oblique_front_overlap_pct is not None
+                        else s.front_overlap_pct
+                    ),
+                    side_overlap_pct=(
+                        s.oblique_side_overlap_pct
+                        if s.oblique_side_overlap_pct is not None
+                        else s.side_overlap_pct
+                    ),
+                )
+            )
+    return defs
+
+
+def _check_speed(
+    spec: MissionSpec,
+    pdef: _PassDef,
+    trigger_m: float,
+    alt_agl_m: float,
+    speed_m_s: float,
+    warnings: list[str],
+) -> float:
+    """Refuse (or, with adjust_speed, lower) a speed the camera cannot keep up with."""
+    camera = spec.camera
+    if spec.survey.trigger is TriggerMode.HOVER:
+        return speed_m_s
+    limits = {"trigger": ex.max_speed_for_trigger_m_s(trigger_m, camera.min_trigger_interval_s)}
+    if camera.shutter_s is not None:
+        along_gsd = min(near_far_gsd_cm(camera, alt_agl_m, pdef.tilt_deg)) if pdef.tilt_deg else (
+            camera.gsd_y_cm(alt_agl_m) if spec.orientation is Orientation.LANDSCAPE else camera.gsd_x_cm(alt_agl_m)
+        )
+        limits["blur"] = ex.max_speed_for_blur_m_s(along_gsd, camera.shutter_s, spec.survey.max_blur_px)
+    reason, limit = min(limits.items(), key=lambda kv: kv[1])
+    if speed_m_s <= limit + 1e-9:
+        return speed_m_s
+    why = (
+        f"the camera needs {camera.min_trigger_interval_s:g} s between photos and the {pdef.name} pass "
+        f"triggers every {trigger_m:.1f} m"
+        if reason == "trigger"
+        else f"a {camera.shutter_s:g} s exposure blurs more than {spec.survey.max_blur_px:g} px above it"
+    )
+    safe = math.floor(limit * 10.0) / 10.0
+    if spec.survey.adjust_speed:
+        warnings.append(f"speed lowered from {speed_m_s:g} to {safe:g} m/s: {why}")
+        return safe
+    raise PlanningError(
+        f"{spec.source}: speed_m_s = {speed_m_s:g} is too fast: {why}, so at most {safe:g} m/s; "
+        f"lower speed_m_s, lower the overlaps, or set adjust_speed = true"
+    )
+
+
+def _rotate(geom: shapely.Geometry, direction_deg: float) -> shapely.Geometry:
+    def fn(coords: np.ndarray) -> np.ndarray:
+        u, v = ex.to_pass_frame(coords[:, 0], coords[:, 1], direction_deg)
+        return np.column_stack([u, v])
+
+    return shapely.transform(geom, fn)
