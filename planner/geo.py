@@ -66,6 +66,17 @@ class LocalFrame:
         lon, lat = self._to_lonlat.transform(np.asarray(x_m, float), np.asarray(y_m, float))
         return np.asarray(lon, float), np.asarray(lat, float)
 
+    def true_north_grid_bearing_deg(self, lon_deg: float, lat_deg: float) -> float:
+        """Grid bearing of true north at a point (minus the meridian convergence).
+
+        A true bearing b is the grid bearing ``b + true_north_grid_bearing_deg``: lines are
+        planned in grid bearings and reported in true bearings.
+        """
+        step = Geodesic.WGS84.Direct(lat_deg, lon_deg, 0.0, 100.0)
+        x0, y0 = self.to_xy(lon_deg, lat_deg)
+        x1, y1 = self.to_xy(step["lon2"], step["lat2"])
+        return float(np.degrees(np.arctan2(x1 - x0, y1 - y0)))
+
     def geometry_to_xy(self, geom: BaseGeometry) -> BaseGeometry:
         """A shapely geometry in lon/lat, projected into this frame."""
         return shapely.transform(geom, lambda c: np.column_stack(self.to_xy(c[:, 0], c[:, 1])))

@@ -9,7 +9,7 @@ grid north of the UTM frame; the caption gives the angle to true north at home (
 convergence).
 
 Large plans (hundreds of thousands of stations) are drawn with one collection per layer and
-evenly thinned footprints and stations; the legend says how many of how many are shown.
+footprints and stations thinned to every k-th; the legend says which and how many.
 matplotlib is used through its object API (``Figure`` with the Agg canvas), never pyplot, so
 no global state is touched and threads can render side by side.
 """
@@ -21,15 +21,15 @@ import logging
 import math
 import os
 from pathlib import Path
+from typing import Any, cast
 
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.collections import LineCollection, PolyCollection
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
-from matplotlib.patches import Patch, PathPatch
+from matplotlib.patches import Patch, PathPatch, Rectangle
 from matplotlib.path import Path as MplPath
-from mpl_toolkits.axes_grid1.anchored_artists import AnchoredSizeBar
 from numpy.typing import NDArray
 from shapely.geometry import MultiPolygon, Polygon
 
@@ -39,8 +39,8 @@ from .plan import PassKind, SurveyPlan
 
 log = logging.getLogger(__name__)
 
-#: Stations drawn as dots at most (evenly thinned beyond).
-DEFAULT_MAX_STATIONS = 20_000
+#: Stations drawn as dots at most (every k-th beyond).
+DEFAULT_MAX_STATIONS = 10_000
 
 _PASS_COLOURS = {
     PassKind.NADIR: "#1565c0",
@@ -65,13 +65,23 @@ def scale_bar_length_m(span_m: float) -> float:
     return 10.0**exponent  # pragma: no cover - 1 x 10^n <= target by construction
 
 
-def _thin(n: int, max_count: int) -> NDArray[np.int64]:
-    """At most ``max_count`` indices of ``range(n)``, evenly spread."""
-    if n <= max_count:
-        return np.arange(n, dtype=np.int64)
+def _thin_step(n: int, max_count: int) -> int:
+    """Keep every ``thin_step``-th of ``n`` items so that at most ``max_count`` remain (>= 1)."""
+    return 1 if n <= max_count or max_count <= 0 else -(-n // max_count)
+
+
+def _ordinal(k: int) -> str:
+    """1st, 2nd, 3rd, 4th, ..., 11th, 12th, 13th, ..., 21st."""
+    suffix = "th" if 10 <= k % 100 <= 20 else {1: "st", 2: "nd", 3: "rd"}.get(k % 10, "th")
+    return f"{k}{suffix}"
+
+
+def _thin(n: int, max_count: int) -> tuple[NDArray[np.int64], int]:
+    """Every k-th index of ``range(n)``, at most ``max_count`` of them, and k."""
     if max_count <= 0:
-        return np.zeros(0, dtype=np.int64)
-    return np.unique(np.round(np.linspace(0, n - 1, max_count)).astype(np.int64))
+        return np.zeros(0, dtype=np.int64), 0
+    step = _thin_step(n, max_count)
+    return np.arange(0, n, step, dtype=np.int64), step
 
 
 def _polygon_path(geom: Polygon | MultiPolygon, ox: float, oy: float) -> MplPath | None:
@@ -94,18 +104,49 @@ def _polygon_path(geom: Polygon | MultiPolygon, ox: float, oy: float) -> MplPath
     return MplPath(np.concatenate(vertices), np.concatenate(codes))
 
 
-def _shown(count: int, total: int, what: str) -> str:
+def _shown(count: int, total: int, step: int, what: str) -> str:
     if count == total:
         return f"{what} (all {total:,})"
-    return f"{what} ({count:,} of {total:,}, evenly thinned)"
+    if step == 0:
+        return f"{what}: none of {total:,} shown"
+    return f"{what}: every {_ordinal(step)} of\n{total:,} shown ({count:,})"
 
 
-def _grid_convergence_deg(plan: SurveyPlan) -> float:
-    """Angle from grid north to true north at home, degrees (positive: true north is east)."""
-    lon, lat = plan.home.lon_deg, plan.home.lat_deg
-    x0, y0 = plan.frame.to_xy(lon, lat)
-    x1, y1 = plan.frame.to_xy(lon, min(lat + 0.001, 89.999))
-    return math.degrees(math.atan2(float(x1) - float(x0), float(y1) - float(y0)))
+def _draw_scale_bar(ax: Any, length_m: float, limits: tuple[float, float, float, float]) -> None:
+    """A scale bar of ``length_m`` in the lower right corner: alternating black and white
+    quarters in a white box, the length written above."""
+    _, x1, y0, y1 = limits
+    unit = (y1 - y0) / 100.0  # one hundredth of the map's height
+    right = x1 - 6.0 * unit  # room for the label centred on the bar's end
+    left = right - length_m
+    bottom = y0 + 2.5 * unit
+    ax.add_patch(
+        Rectangle(
+            (left - 2.0 * unit, bottom - 1.5 * unit),
+            length_m + 7.0 * unit,
+            6.0 * unit,
+            facecolor="white",
+            edgecolor="#424242",
+            lw=0.8,
+            alpha=0.9,
+            zorder=9,
+        )
+    )
+    for k in range(4):
+        ax.add_patch(
+            Rectangle(
+                (left + k * length_m / 4, bottom),
+                length_m / 4,
+                1.2 * unit,
+                facecolor="black" if k % 2 == 0 else "white",
+                edgecolor="black",
+                lw=0.8,
+                zorder=10,
+            )
+        )
+    label = f"{length_m / 1000:g} km" if length_m >= 1000 else f"{length_m:g} m"
+    ax.text(left, bottom + 1.8 * unit, "0", ha="center", va="bottom", fontsize=8, zorder=10)
+    ax.text(right, bottom + 1.8 * unit, label, ha="center", va="bottom", fontsize=9, zorder=10)
 
 
 def render_map_figure(
@@ -114,7 +155,7 @@ def render_map_figure(
     max_footprints: int = 4000,
     max_stations: int = DEFAULT_MAX_STATIONS,
 ) -> Figure:
-    """The map of ``plan`` as a matplotlib ``Figure`` on an Agg canvas (see :func:`render_map_png`)."""
+    """The map of ``plan`` as a ``Figure`` on an Agg canvas (see :func:`render_map_png`)."""
     if max_footprints < 0 or max_stations < 0:
         raise InputError(
             f"max_footprints = {max_footprints}, max_stations = {max_stations}: "
@@ -143,15 +184,27 @@ def render_map_figure(
     pad = 0.06 * span
     x0, x1, y0, y1 = x0 - pad, x1 + pad, y0 - pad, y1 + pad
 
-    # a figure shaped like the map (within limits), room for title, legend and caption
+    # a figure shaped like the map (within limits): margins in inches for the title lines,
+    # the axis labels and caption, and the legend on the right
     aspect = (y1 - y0) / max(x1 - x0, 1e-9)
     map_w_in = 9.0
-    map_h_in = float(np.clip(map_w_in * aspect, 4.5, 11.0))
-    fig = Figure(figsize=(map_w_in + 3.2, map_h_in + 1.6), dpi=100)
+    map_h_in = float(np.clip(map_w_in * aspect, 4.5, 12.0))
+    left_in, right_in, top_in, bottom_in = 0.85, 3.4, 1.0, 1.0
+    fig_w_in, fig_h_in = left_in + map_w_in + right_in, bottom_in + map_h_in + top_in
+    fig = Figure(figsize=(fig_w_in, fig_h_in), dpi=100)
     FigureCanvasAgg(fig)
     ax = fig.add_axes(
-        (0.7 / (map_w_in + 3.2), 1.0 / (map_h_in + 1.6), map_w_in / (map_w_in + 3.2), map_h_in / (map_h_in + 1.6))
+        (left_in / fig_w_in, bottom_in / fig_h_in, map_w_in / fig_w_in, map_h_in / fig_h_in)
     )
+    # widen the short side so that the data fill the axes box at equal scale
+    box_ratio = map_h_in / map_w_in
+    if (y1 - y0) / (x1 - x0) > box_ratio:
+        grow = ((y1 - y0) / box_ratio - (x1 - x0)) / 2
+        x0, x1 = x0 - grow, x1 + grow
+    else:
+        grow = ((x1 - x0) * box_ratio - (y1 - y0)) / 2
+        y0, y1 = y0 - grow, y1 + grow
+    points_per_m = map_w_in * 72.0 / (x1 - x0)
     ax.set_facecolor("white")
     handles: list[Patch | Line2D] = []
 
@@ -185,13 +238,14 @@ def render_map_figure(
         )
 
     # footprints: thin translucent outlines, coloured by pass kind
-    fp_index = _thin(n, max_footprints)
+    fp_index, fp_step = _thin(n, max_footprints)
     if fp_index.size:
         fp_kinds = [kind_of_pass.get(int(p), PassKind.NADIR) for p in st.pass_index[fp_index]]
         fp_colours = [_PASS_COLOURS[k] for k in fp_kinds]
         ax.add_collection(
             PolyCollection(
-                st.footprint_xy_m[fp_index] - (ox, oy),
+                # an (N, 4, 2) array is a sequence of polygons; the stubs only say Sequence
+                cast(Any, st.footprint_xy_m[fp_index] - (ox, oy)),
                 closed=True,
                 facecolors="none",
                 edgecolors=fp_colours,
@@ -205,7 +259,7 @@ def render_map_figure(
                 facecolor="none",
                 edgecolor="#607d8b",
                 lw=0.6,
-                label=_shown(int(fp_index.size), n, "frame footprints"),
+                label=_shown(int(fp_index.size), n, fp_step, "frame footprints"),
             )
         )
 
@@ -221,66 +275,102 @@ def render_map_figure(
         )
         handles.append(Line2D([], [], color="#424242", lw=0.8, ls=(0, (4, 3)), label="flight path"))
     kinds_drawn: dict[PassKind, int] = {}
+    layer = {PassKind.OBLIQUE: 5.0, PassKind.CROSSHATCH: 5.1, PassKind.NADIR: 5.2}
     for p in plan.passes:
         if not p.lines:
             continue
+        # wide enough to see, narrow enough that neighbouring lines stay apart on the page
+        line_w = float(np.clip(0.35 * p.line_spacing_m * points_per_m, 0.25, 1.6))
         segments = np.array([(ln.start_xy_m, ln.end_xy_m) for ln in p.lines], dtype=float)
         ax.add_collection(
             LineCollection(
-                segments - (ox, oy), colors=_PASS_COLOURS[p.kind], linewidths=1.6, zorder=5
+                cast(Any, segments - (ox, oy)),
+                colors=_PASS_COLOURS[p.kind],
+                linewidths=line_w,
+                zorder=layer[p.kind],
             )
         )
         kinds_drawn[p.kind] = kinds_drawn.get(p.kind, 0) + len(p.lines)
     for kind, count in kinds_drawn.items():
         handles.append(
-            Line2D([], [], color=_PASS_COLOURS[kind], lw=1.6, label=f"camera on, {kind.value} ({count} lines)")
+            Line2D(
+                [],
+                [],
+                color=_PASS_COLOURS[kind],
+                lw=1.6,
+                label=f"camera on, {kind.value} ({count} lines)",
+            )
         )
 
-    st_index = _thin(n, max_stations)
+    st_index, st_step = _thin(n, max_stations)
     if st_index.size:
+        # dot size from the spacing of the dots drawn along their line, in points
+        steps = np.hypot(np.diff(st.x_m[st_index]), np.diff(st.y_m[st_index]))
+        spacing_pt = float(np.median(steps)) * points_per_m if steps.size else 8.0
         ax.scatter(
             st.x_m[st_index] - ox,
             st.y_m[st_index] - oy,
-            s=3 if st_index.size > 2000 else 6,
+            s=float(np.clip(0.5 * min(spacing_pt, 8.0) ** 2, 0.3, 8.0)),
             c="#212121",
+            alpha=0.8 if st_index.size > 2000 else 1.0,
             linewidths=0,
             zorder=6,
         )
         handles.append(
             Line2D(
-                [], [], ls="none", marker="o", ms=3, color="#212121",
-                label=_shown(int(st_index.size), n, "exposure stations"),
+                [],
+                [],
+                ls="none",
+                marker="o",
+                ms=3,
+                color="#212121",
+                label=_shown(int(st_index.size), n, st_step, "exposure stations"),
             )
         )
 
     # home, entry and the direction of the first line
-    ax.plot([0.0], [0.0], marker="^", ms=12, color="#ffd600", mec="black", mew=1.2, ls="none", zorder=8)
+    ax.plot(
+        [0.0], [0.0], marker="^", ms=12, color="#ffd600", mec="black", mew=1.2, ls="none", zorder=8
+    )
     handles.append(
-        Line2D([], [], marker="^", ms=10, color="#ffd600", mec="black", ls="none", label="home (0, 0)")
+        Line2D(
+            [], [], marker="^", ms=10, color="#ffd600", mec="black", ls="none", label="home (0, 0)"
+        )
     )
     if plan.passes and plan.passes[0].lines:
         first = plan.passes[0].lines[0]
         ex, ey = first.entry_xy_m[0] - ox, first.entry_xy_m[1] - oy
-        h = math.radians(first.heading_deg)
+        # the arrow follows the line on the map (grid), whatever bearing convention it carries
+        dx = first.end_xy_m[0] - first.start_xy_m[0]
+        dy = first.end_xy_m[1] - first.start_xy_m[1]
+        norm = math.hypot(dx, dy) or 1.0
         arrow_m = 0.08 * span
-        ax.plot([ex], [ey], marker="o", ms=9, color="#00c853", mec="black", mew=1.0, ls="none", zorder=8)
+        ax.plot(
+            [ex], [ey], marker="o", ms=9, color="#00c853", mec="black", mew=1.0, ls="none", zorder=8
+        )
         ax.annotate(
             "",
-            xy=(ex + arrow_m * math.sin(h), ey + arrow_m * math.cos(h)),
+            xy=(ex + arrow_m * dx / norm, ey + arrow_m * dy / norm),
             xytext=(ex, ey),
             arrowprops={"arrowstyle": "-|>", "color": "#00c853", "lw": 2.2, "mutation_scale": 16},
             zorder=8,
         )
         handles.append(
             Line2D(
-                [], [], marker="o", ms=8, color="#00c853", mec="black", ls="none",
-                label=f"entry, first line heading {first.heading_deg:.0f} deg",
+                [],
+                [],
+                marker="o",
+                ms=8,
+                color="#00c853",
+                mec="black",
+                ls="none",
+                label=f"entry; first line heading {first.heading_deg:.0f} deg (true)",
             )
         )
 
     ax.set_xlim(x0, x1)
     ax.set_ylim(y0, y1)
-    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_aspect("equal", adjustable="box")
     ax.set_xlabel("metres east of home (grid)")
     ax.set_ylabel("metres north of home (grid)")
     ax.grid(True, color="#eeeeee", lw=0.6, zorder=0)
@@ -288,21 +378,7 @@ def render_map_figure(
     ax.ticklabel_format(useOffset=False, style="plain")
 
     # scale bar and north arrow
-    bar_m = scale_bar_length_m(x1 - x0)
-    bar_label = f"{bar_m / 1000:g} km" if bar_m >= 1000 else f"{bar_m:g} m"
-    ax.add_artist(
-        AnchoredSizeBar(
-            ax.transData,
-            bar_m,
-            bar_label,
-            loc="lower right",
-            pad=0.6,
-            sep=4,
-            frameon=True,
-            size_vertical=(y1 - y0) * 0.006,
-            color="black",
-        )
-    )
+    _draw_scale_bar(ax, scale_bar_length_m(x1 - x0), (x0, x1, y0, y1))
     ax.annotate(
         "N",
         xy=(0.95, 0.96),
@@ -317,25 +393,35 @@ def render_map_figure(
     )
 
     s = plan.summary
-    fig.suptitle(plan.name, x=0.02, ha="left", fontsize=14, fontweight="bold")
     fig.text(
-        0.02,
-        1.0 - 0.62 / (map_h_in + 1.6),
+        left_in / fig_w_in,
+        1.0 - 0.2 / fig_h_in,
+        plan.name,
+        ha="left",
+        va="top",
+        fontsize=14,
+        fontweight="bold",
+    )
+    fig.text(
+        left_in / fig_w_in,
+        1.0 - 0.58 / fig_h_in,
         f"GSD {s.gsd_cm:.2f} cm  |  {s.altitude_agl_m:.1f} m above ground  |  "
         f"{s.line_count:,} lines in {s.pass_count} pass{'es' if s.pass_count != 1 else ''}  |  "
         f"{s.photo_count:,} photos  |  {s.area_m2 / 10_000:,.2f} ha  |  "
         f"{s.flight_distance_m / 1000:,.1f} km, {s.flight_time_s / 60:,.0f} min",
         ha="left",
+        va="top",
         fontsize=10,
     )
+    convergence_deg = plan.frame.true_north_grid_bearing_deg(plan.home.lon_deg, plan.home.lat_deg)
     epsg = plan.frame.epsg
     crs_name = f"EPSG:{epsg} ({plan.frame.crs.name})" if epsg else plan.frame.crs.name
     fig.text(
-        0.02,
-        0.2 / (map_h_in + 1.6),
+        left_in / fig_w_in,
+        0.15 / fig_h_in,
         f"Grid: {crs_name}, metres from home. The north arrow points to grid north; "
-        f"true north is {abs(_grid_convergence_deg(plan)):.2f} deg "
-        f"{'east' if _grid_convergence_deg(plan) >= 0 else 'west'} of it at home.",
+        f"true north is {abs(convergence_deg):.2f} deg "
+        f"{'east' if convergence_deg >= 0 else 'west'} of it at home.",
         ha="left",
         fontsize=8,
         color="#424242",
@@ -376,7 +462,7 @@ def render_map_png(
     """Render map.png of ``plan`` and write it atomically; returns the path written.
 
     ``max_footprints`` / ``max_stations``: frame footprints and station dots drawn at most,
-    evenly thinned beyond (the legend says how many of how many are shown). ``dpi``: pixels
+    every k-th beyond (the legend says which and how many). ``dpi``: pixels
     per inch of the PNG (the figure is about 12 inches wide).
     """
     data = map_png_bytes(plan, max_footprints=max_footprints, max_stations=max_stations, dpi=dpi)

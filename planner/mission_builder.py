@@ -90,7 +90,10 @@ def build_mission(
     speed_m_s: float,
     passes: list[PassPlan],
     zones_xy: tuple[Polygon, ...],
+    true_north_grid_deg: float = 0.0,
 ) -> BuiltMission:
+    """Items, stations and path for the passes in order. Geometry is in grid bearings;
+    headings in the stations and lines are reported as true bearings."""
     survey = spec.survey
     vehicle = spec.vehicle
     clearance = survey.exclusion_clearance_m
@@ -202,7 +205,7 @@ def build_mission(
                     end_xy_m=pts["stop"],
                     entry_xy_m=pts["entry"],
                     exit_xy_m=pts["exit"],
-                    heading_deg=heading,
+                    heading_deg=(heading - true_north_grid_deg) % 360.0,
                 )
             )
             n = seg.count
@@ -210,12 +213,13 @@ def build_mission(
             columns.line_index.append(np.full(n, seg.row, np.int32))
             columns.x.append(sx)
             columns.y.append(sy)
-            columns.heading.append(np.full(n, heading))
+            true_heading = (heading - true_north_grid_deg) % 360.0
+            columns.heading.append(np.full(n, true_heading))
             if pp.look_heading_deg is not None:
-                columns.look.append(np.full(n, pp.look_heading_deg))
+                columns.look.append(np.full(n, (pp.look_heading_deg - true_north_grid_deg) % 360.0))
                 columns.up.append(np.full(n, pp.look_heading_deg))
             else:
-                columns.look.append(np.full(n, heading))
+                columns.look.append(np.full(n, true_heading))
                 columns.up.append(np.full(n, up_bearing_deg(heading, spec.orientation)))
             columns.tilt.append(np.full(n, pp.tilt_deg))
             columns.gsd.append(np.full(n, pp.centre_gsd_cm))

@@ -38,7 +38,7 @@ class FlightLine:
     end_xy_m: tuple[float, float]
     entry_xy_m: tuple[float, float]
     exit_xy_m: tuple[float, float]
-    heading_deg: float  # bearing of flight, degrees clockwise from grid north
+    heading_deg: float  # bearing of flight, degrees clockwise from true north
 
     @property
     def length_m(self) -> float:
@@ -52,9 +52,9 @@ class FlightPass:
     index: int
     kind: PassKind
     name: str  # e.g. "nadir", "crosshatch", "oblique 30 deg looking 90 deg"
-    direction_deg: float  # bearing of the lines, 0-180
+    direction_deg: float  # true bearing of the lines, 0-180
     tilt_deg: float  # camera off nadir, 0 for nadir passes
-    look_heading_deg: float | None  # bearing the camera looks toward (obliques), else None
+    look_heading_deg: float | None  # true bearing the camera looks toward (obliques), else None
     alt_agl_m: float
     line_spacing_m: float
     trigger_distance_m: float
@@ -70,7 +70,7 @@ class Stations:
     - ``pass_index``, ``line_index``: int32, the pass and the line within it.
     - ``x_m``, ``y_m``: position in the local frame; ``lon_deg``, ``lat_deg``: WGS84.
     - ``alt_rel_home_m``: commanded altitude above home; ``alt_agl_m``: above the ground below.
-    - ``heading_deg``: bearing of flight; ``look_heading_deg``: bearing the camera's optical axis
+    - ``heading_deg``: true bearing of flight; ``look_heading_deg``: true bearing the optical axis
       points toward (equals ``heading_deg`` for nadir frames); ``tilt_deg``: off nadir.
     - ``gsd_cm``: GSD where the optical axis meets the ground.
     - ``footprint_xy_m``: (N, 4, 2) ground corners in the local frame, order: image top-left,

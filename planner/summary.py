@@ -25,6 +25,7 @@ def summarize(
     passes: list[PassPlan],
     built: BuiltMission,
     warnings: tuple[str, ...],
+    true_north_grid_deg: float,
 ) -> Summary:
     camera = spec.camera
     footprint = camera.footprint(alt_agl_m, spec.orientation)
@@ -67,7 +68,7 @@ def summarize(
         base_height_ratio=ex.base_height_ratio(air_base, alt_agl_m),
         intersection_angle_deg=ex.intersection_angle_deg(air_base, alt_agl_m),
         depth_precision_m=ex.depth_precision_m(camera, air_base, alt_agl_m),
-        direction_deg=nadir.direction_deg,
+        direction_deg=(nadir.direction_deg - true_north_grid_deg) % 180.0,
         pass_count=len(passes),
         line_count=sum(len({s.row for s in p.segments}) for p in passes),
         photo_count=len(built.stations),

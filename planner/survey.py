@@ -61,9 +61,20 @@ def plan_survey(spec: MissionSpec) -> SurveyPlan:
             f"trigger = \"distance\" for a fixed-wing"
         )
 
-    # 1. area --------------------------------------------------------------------------------------
     polygons = load_polygons(spec.area_path)
     exclusions = [p for path in spec.exclude_paths for p in load_polygons(path)]
+    return plan_polygons(spec, polygons, exclusions)
+
+
+def plan_polygons(spec: MissionSpec, polygons: list[Polygon], exclusions: list[Polygon]) -> SurveyPlan:
+    """Plan over polygons already loaded (lon/lat degrees); :func:`plan_survey` reads them from
+    the spec's files."""
+    survey = spec.survey
+    vehicle = spec.vehicle
+    camera = spec.camera
+    warnings: list[str] = []
+
+    # 1. area --------------------------------------------------------------------------------------
     area_lonlat, zones_lonlat = build_area(polygons, exclusions)
     if area_lonlat.is_empty:
         raise SpecError(f"{spec.area_path}: nothing is left of the area once the exclusions are removed")
@@ -111,8 +122,13 @@ def plan_survey(spec: MissionSpec) -> SurveyPlan:
             raise SpecError(f"{spec.source}: home lies inside an exclusion zone; move it out")
 
     # 3. passes --------------------------------------------------------------------------------
-    direction = survey.direction_deg if survey.direction_deg is not None else auto_direction_deg(area_xy)
-    pass_defs = _pass_definitions(spec, direction)
+    # Bearings in the spec and in every output are true bearings; geometry uses grid bearings.
+    true_north_grid = frame.true_north_grid_bearing_deg(centroid.x, centroid.y)
+    if survey.direction_deg is not None:
+        direction = (survey.direction_deg + true_north_grid) % 180.0
+    else:
+        direction = auto_direction_deg(area_xy)
+    pass_defs = _pass_definitions(spec, direction, true_north_grid)
 
     blocked_xy = (
         shapely.union_all([z.buffer(survey.exclusion_clearance_m) for z in zones_xy]) if zones_xy else None
@@ -168,6 +184,7 @@ def plan_survey(spec: MissionSpec) -> SurveyPlan:
         speed_m_s=speed_m_s,
         passes=pass_plans,
         zones_xy=zones_xy,
+        true_north_grid_deg=true_north_grid,
     )
 
     passes = tuple(
@@ -175,9 +192,11 @@ def plan_survey(spec: MissionSpec) -> SurveyPlan:
             index=p.index,
             kind=p.kind,
             name=p.name,
-            direction_deg=p.direction_deg,
+            direction_deg=(p.direction_deg - true_north_grid) % 180.0,
             tilt_deg=p.tilt_deg,
-            look_heading_deg=p.look_heading_deg,
+            look_heading_deg=(
+                None if p.look_heading_deg is None else (p.look_heading_deg - true_north_grid) % 360.0
+            ),
             alt_agl_m=alt_agl_m,
             line_spacing_m=p.line_spacing_m,
             trigger_distance_m=p.trigger_distance_m,
@@ -201,6 +220,7 @@ def plan_survey(spec: MissionSpec) -> SurveyPlan:
         passes=pass_plans,
         built=built,
         warnings=tuple(warnings),
+        true_north_grid_deg=true_north_grid,
     )
     for w in warnings:
         log.warning(w)
@@ -253,7 +273,9 @@ def _default_home(area_xy: Polygon | MultiPolygon) -> tuple[float, float]:
     return float(vertices[k, 0]), float(vertices[k, 1])
 
 
-def _pass_definitions(spec: MissionSpec, direction: float) -> list[_PassDef]:
+def _pass_definitions(spec: MissionSpec, direction: float, true_north_grid: float) -> list[_PassDef]:
+    """The passes to fly; ``direction`` is the nadir lines' grid bearing, look headings are
+    turned from true to grid bearings with ``true_north_grid``."""
     s = spec.survey
     defs = [
         _PassDef(
@@ -279,7 +301,8 @@ def _pass_definitions(spec: MissionSpec, direction: float) -> list[_PassDef]:
             )
         )
     for oblique in s.oblique:
-        for heading in oblique.headings_deg:
+        for true_heading in oblique.headings_deg:
+            heading = (true_heading + true_north_grid) % 360.0
             # Lines parallel or perpendicular to the look direction (the frame's trapezoid is then
             # symmetric about the line axis), whichever is closer to the nadir direction.
             options = [heading % 180.0, (heading + 90.0) % 180.0]
@@ -287,7 +310,7 @@ def _pass_definitions(spec: MissionSpec, direction: float) -> list[_PassDef]:
             defs.append(
                 _PassDef(
                     kind=PassKind.OBLIQUE,
-                    name=f"oblique {oblique.tilt_deg:g} deg looking {heading:g} deg",
+                    name=f"oblique {oblique.tilt_deg:g} deg looking {true_heading:g} deg",
                     direction_deg=line_dir,
                     tilt_deg=oblique.tilt_deg,
                     look_heading_deg=heading,

@@ -17,10 +17,12 @@ ground, so they travel as properties whose names say their reference (``alt_rel_
 ``alt_agl_m``).
 
 A plan can hold hundreds of thousands of stations, so features are not built with
-``json.dumps`` one by one: every numeric column is turned into digits with numpy integer
-arithmetic into a fixed-width byte table (one row per feature, NUL bytes as padding), and
-the padding is removed in one pass at the end. NUL never occurs in JSON text (``json.dumps``
-escapes it as ``\\u0000``), so removing it cannot change any string value.
+``json.dumps`` one by one: every numeric column is rounded to an integer count of its last
+decimal and turned into text four digits at a time through lookup tables, into a fixed-width
+byte table (one row per feature, NUL bytes as padding: leading and trailing zeros, the sign
+of positive numbers), and the padding is removed in one pass per chunk of rows. NUL never
+occurs in JSON text (``json.dumps`` escapes it as ``\\u0000``), so removing it cannot change
+any string value.
 """
 
 from __future__ import annotations
@@ -28,7 +30,7 @@ from __future__ import annotations
 import json
 import logging
 import os
-from collections.abc import Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -57,90 +59,94 @@ _DIGIT_0 = ord("0")
 # --- vectorized JSON text -------------------------------------------------------------------
 
 
-def _digit_tables() -> tuple[NDArray[np.uint8], NDArray[np.int64]]:
-    """ASCII digits of 0000-9999 (10000, 4) and the count of trailing zeros of each (0 -> 4)."""
+def _digit_tables() -> dict[str, NDArray[np.uint32]]:
+    """Text of 0000-9999 as four ASCII bytes packed in a uint32, in four variants.
+
+    ``plain``: zero-padded; ``lead_low``: leading zeros as NUL but at least one digit (the
+    units group of an integer part); ``lead_high``: leading zeros as NUL, 0 all NUL (a higher
+    group with nothing above it); ``trail``: trailing zeros as NUL, 0 all NUL (fraction groups).
+    """
     k = np.arange(10_000)
-    digits = np.stack([(k // 10**p) % 10 for p in (3, 2, 1, 0)], axis=1).astype(np.uint8)
-    trailing = np.zeros(10_000, dtype=np.int64)
-    rest = k.copy()
-    still = np.ones(10_000, dtype=bool)
-    for _ in range(4):
-        still &= rest % 10 == 0
-        trailing += still
-        rest //= 10
-    return digits + _DIGIT_0, trailing
+    digits = np.stack([(k // 10**p) % 10 for p in (3, 2, 1, 0)], axis=1)
+    nonzero = digits != 0
+    seen_from_left = np.logical_or.accumulate(nonzero, axis=1)
+    seen_from_right = np.logical_or.accumulate(nonzero[:, ::-1], axis=1)[:, ::-1]
+    text = (digits + _DIGIT_0).astype(np.uint8)
+
+    def pack(keep: NDArray[np.bool_]) -> NDArray[np.uint32]:
+        table = np.where(keep, text, _NUL).astype(np.uint8)
+        return np.ascontiguousarray(table).view(np.uint32).ravel()
+
+    units = np.zeros_like(nonzero)
+    units[:, 3] = True
+    return {
+        "plain": pack(np.ones_like(nonzero)),
+        "lead_low": pack(seen_from_left | units),
+        "lead_high": pack(seen_from_left),
+        "trail": pack(seen_from_right),
+    }
 
 
-_DIGITS4, _TRAILING_ZEROS4 = _digit_tables()
-
-
-def _digits(q: NDArray[np.int64], width: int) -> NDArray[np.uint8]:
-    """ASCII digits of non-negative integers, zero-padded to ``width`` columns."""
-    groups = -(-width // 4)
-    out = np.empty((q.shape[0], groups * 4), dtype=np.uint8)
-    rest = q
-    for g in range(groups - 1, -1, -1):
-        out[:, 4 * g : 4 * g + 4] = _DIGITS4[rest % 10_000]
-        rest = rest // 10_000
-    return out[:, groups * 4 - width :]
+_TEXT4 = _digit_tables()
 
 
 def _fixed_point(values: ArrayLike, decimals: int, *, what: str) -> NDArray[np.uint8]:
-    """Numbers as JSON text, one per row of a NUL-padded uint8 table (right-aligned).
+    """Numbers as JSON text, one per row of a NUL-padded uint8 table.
 
     Rounded to ``decimals`` places (0-8), trailing zeros of the fraction dropped (``30``
     rather than ``30.00``), no ``-0``. ``what`` names the column in the error for a
-    non-finite value.
+    non-finite value. Layout: a sign column, the integer part in groups of four digits,
+    the dot, the fraction in groups of four digits; padding is NUL.
     """
     if not 0 <= decimals <= 8:
         raise ValueError(f"decimals = {decimals}, expected 0-8")
     v = np.asarray(values, dtype=np.float64)
     n = v.shape[0]
-    bad = ~np.isfinite(v)
-    if bad.any():
-        row = int(np.flatnonzero(bad)[0])
+    if not np.isfinite(v).all():
+        row = int(np.flatnonzero(~np.isfinite(v))[0])
         raise PlanningError(
             f"{what} of row {row} is {v[row]}; the plan holds a non-finite number and cannot be "
             f"written as GeoJSON (a planner bug: report it with the mission spec)"
         )
     scale = 10**decimals
-    if v.size and float(np.max(np.abs(v))) * scale >= 2.0**62:
-        row = int(np.argmax(np.abs(v)))
+    magnitude = np.abs(v)
+    if n and float(magnitude.max()) * scale >= 2.0**62:
+        row = int(np.argmax(magnitude))
         raise PlanningError(
             f"{what} of row {row} is {v[row]}, too large to write as GeoJSON; a planner bug: "
             f"report it with the mission spec"
         )
-    q = np.rint(np.abs(v) * scale).astype(np.int64)
-    int_part = q // scale
-    int_width = len(str(int(int_part.max()))) if n else 1
-    dot = 1 if decimals else 0
-    width = 1 + int_width + dot + decimals
+    q = np.rint(magnitude * scale).astype(np.int64)
+    int_part = q // scale if decimals else q
+    int_groups = -(-len(str(int(int_part.max()))) // 4) if n else 1
+    frac_groups = -(-decimals // 4)
+    width = 1 + 4 * int_groups + (1 + 4 * frac_groups if decimals else 0)
     out = np.empty((n, width), dtype=np.uint8)
     if n == 0:
         return out
-    # columns: [sign][int_width digits][.][decimals digits]
-    out[:, 1 : 1 + int_width] = _digits(int_part, int_width)
-    n_int = np.searchsorted(10 ** np.arange(1, 19, dtype=np.int64), int_part, side="right") + 1
-    first = 1 + int_width - n_int  # column of the first significant integer digit
-    last = np.full(n, width, dtype=np.int64)  # one past the last column kept
+    out[:, 0] = np.where((v < 0) & (q > 0), ord("-"), _NUL)  # no "-0"
+    rest = int_part
+    for g in range(int_groups):  # least significant group first
+        group = rest % 10_000
+        rest = rest // 10_000
+        lead = _TEXT4["lead_low" if g == 0 else "lead_high"][group]
+        text = lead if g == int_groups - 1 else np.where(rest == 0, lead, _TEXT4["plain"][group])
+        column = 1 + 4 * (int_groups - 1 - g)
+        out[:, column : column + 4] = text.view(np.uint8).reshape(n, 4)
     if decimals:
-        frac = q - int_part * scale
-        out[:, width - decimals - 1] = ord(".")
-        out[:, width - decimals :] = _digits(frac, decimals)
-        if decimals <= 4:
-            zeros = np.minimum(_TRAILING_ZEROS4[frac], decimals)
-        else:
-            low = frac % 10_000
-            high = frac // 10_000
-            zeros = np.where(
-                low == 0, 4 + np.minimum(_TRAILING_ZEROS4[high], decimals - 4), _TRAILING_ZEROS4[low]
-            )
-        last -= zeros + (zeros == decimals)  # an all-zero fraction loses its dot too
-    negative = (v < 0) & (q > 0)
-    first = first - negative
-    out[np.flatnonzero(negative), first[negative]] = ord("-")
-    columns = np.arange(width)
-    out[(columns < first[:, None]) | (columns >= last[:, None])] = _NUL
+        # the fraction, padded with zeros to whole groups of four (they become NUL)
+        frac = (q - int_part * scale) * 10 ** (4 * frac_groups - decimals)
+        dot = 1 + 4 * int_groups
+        out[:, dot] = np.where(frac == 0, _NUL, ord("."))
+        rest = frac
+        all_zero_below = np.ones(n, dtype=bool)
+        for g in range(frac_groups):  # least significant group first
+            group = rest % 10_000
+            rest = rest // 10_000
+            text = np.where(all_zero_below, _TEXT4["trail"][group], _TEXT4["plain"][group])
+            all_zero_below &= group == 0
+            column = dot + 1 + 4 * (frac_groups - 1 - g)
+            out[:, column : column + 4] = text.view(np.uint8).reshape(n, 4)
     return out
 
 
@@ -177,9 +183,9 @@ class _Pick:
 _Field = _Lit | _Num | _Pick
 
 
-def _render_rows(fields: Sequence[_Field], n: int, separator: str = ",\n") -> list[bytes]:
-    """The rows described by ``fields`` as text pieces, rows joined by ``separator``."""
-    pieces: list[bytes] = []
+def _render_rows(fields: Sequence[_Field], n: int, separator: str = ",\n") -> Iterator[bytes]:
+    """The rows described by ``fields`` as text, a chunk of rows at a time, rows joined by
+    ``separator`` (a generator, so that only one chunk's table is alive at a time)."""
     sep = np.frombuffer(separator.encode(), dtype=np.uint8)
     literals = {
         id(f): np.frombuffer(f.text.encode("utf-8"), dtype=np.uint8)
@@ -190,11 +196,15 @@ def _render_rows(fields: Sequence[_Field], n: int, separator: str = ",\n") -> li
         stop = min(n, start + _CHUNK_ROWS)
         m = stop - start
         blocks: list[NDArray[np.uint8]] = []
+        formatted: dict[tuple[int, int], NDArray[np.uint8]] = {}  # a column written twice
         for f in fields:
             if isinstance(f, _Lit):
                 blocks.append(literals[id(f)])
             elif isinstance(f, _Num):
-                blocks.append(_fixed_point(f.values[start:stop], f.decimals, what=f.what))
+                key = (id(f.values), f.decimals)
+                if key not in formatted:
+                    formatted[key] = _fixed_point(f.values[start:stop], f.decimals, what=f.what)
+                blocks.append(formatted[key])
             else:
                 blocks.append(_choice(f.index[start:stop], f.texts))
         blocks.append(sep)
@@ -204,15 +214,14 @@ def _render_rows(fields: Sequence[_Field], n: int, separator: str = ",\n") -> li
         for block, w in zip(blocks, widths, strict=True):
             table[:, column : column + w] = block  # a literal broadcasts over the rows
             column += w
-        pieces.append(table.tobytes().translate(None, b"\x00"))
-    if pieces:
-        pieces[-1] = pieces[-1][: -len(sep)]
-    return pieces
+        piece = table.tobytes().translate(None, b"\x00")
+        yield piece[: -sep.shape[0]] if stop == n else piece  # none after the last row
 
 
 def _collection(
-    name: str, kind: str, bbox: Sequence[float] | None, features: Sequence[bytes]
+    name: str, kind: str, bbox: Sequence[float] | None, features: Iterable[bytes]
 ) -> bytes:
+    """The FeatureCollection text around ``features``."""
     head: dict[str, object] = {"type": "FeatureCollection", "name": name, "sfap_layer": kind}
     if bbox is not None and all(np.isfinite(bbox)):
         head["bbox"] = [round(float(b), COORD_DECIMALS) for b in bbox]
@@ -321,9 +330,10 @@ def stations_geojson_bytes(plan: SurveyPlan) -> bytes:
     n = len(st)
     pos = _pass_lookup(plan, st.pass_index)
     kinds = tuple(json.dumps(p.kind.value) for p in plan.passes)
+    index = np.arange(n, dtype=np.float64)
     fields: list[_Field] = [
         _Lit('{"type":"Feature","id":'),
-        _Num(np.arange(n, dtype=np.float64), 0, "station index"),
+        _Num(index, 0, "station index"),
         _Lit(',"geometry":{"type":"Point","coordinates":['),
         _Num(st.lon_deg, COORD_DECIMALS, "station longitude"),
         _Lit(","),
@@ -333,7 +343,7 @@ def stations_geojson_bytes(plan: SurveyPlan) -> bytes:
         _Lit(',"line":'),
         _Num(st.line_index.astype(np.float64), 0, "line index"),
         _Lit(',"station":'),
-        _Num(np.arange(n, dtype=np.float64), 0, "station index"),
+        _Num(index, 0, "station index"),
         _Lit(',"kind":'),
         _Pick(pos, kinds),
         _Lit(',"lat_deg":'),
@@ -381,18 +391,20 @@ def footprints_geojson_bytes(plan: SurveyPlan) -> bytes:
     n = len(st)
     corners = np.asarray(st.footprint_lonlat_deg, dtype=np.float64).reshape(n, 4, 2)
     ring = counter_clockwise_corners(corners)
-    ring = np.concatenate([ring, ring[:, :1]], axis=1)  # closed: first corner repeated
+    lon = [np.ascontiguousarray(ring[:, k, 0]) for k in range(4)]
+    lat = [np.ascontiguousarray(ring[:, k, 1]) for k in range(4)]
+    index = np.arange(n, dtype=np.float64)
     fields: list[_Field] = [
         _Lit('{"type":"Feature","id":'),
-        _Num(np.arange(n, dtype=np.float64), 0, "station index"),
+        _Num(index, 0, "station index"),
         _Lit(',"geometry":{"type":"Polygon","coordinates":[['),
     ]
-    for k in range(5):
+    for k in (0, 1, 2, 3, 0):  # closed ring: the first corner again (formatted once)
         fields += [
-            _Lit("[" if k == 0 else ",["),
-            _Num(ring[:, k, 0], COORD_DECIMALS, "footprint longitude"),
+            _Lit("[" if len(fields) == 3 else ",["),
+            _Num(lon[k], COORD_DECIMALS, "footprint longitude"),
             _Lit(","),
-            _Num(ring[:, k, 1], COORD_DECIMALS, "footprint latitude"),
+            _Num(lat[k], COORD_DECIMALS, "footprint latitude"),
             _Lit("]"),
         ]
     fields += [
@@ -401,7 +413,7 @@ def footprints_geojson_bytes(plan: SurveyPlan) -> bytes:
         _Lit(',"line":'),
         _Num(st.line_index.astype(np.float64), 0, "line index"),
         _Lit(',"station":'),
-        _Num(np.arange(n, dtype=np.float64), 0, "station index"),
+        _Num(index, 0, "station index"),
         _Lit(',"tilt_deg":'),
         _Num(st.tilt_deg, 2, "station tilt"),
         _Lit(',"look_heading_deg":'),
@@ -472,10 +484,10 @@ def write_flight_lines_geojson(plan: SurveyPlan, path: str | os.PathLike[str]) -
 
     Geometry: the camera-on segment, first to last exposure position, in flight direction.
     Properties: ``pass``, ``line`` (indices), ``kind`` (nadir | crosshatch | oblique),
-    ``pass_name``, ``heading_deg`` (bearing of flight from grid north of the plan's UTM frame),
+    ``pass_name``, ``heading_deg`` (true bearing of flight, degrees clockwise from true north),
     ``length_m`` (camera-on length), ``lead_in_m`` / ``overshoot_m`` (turnaround extensions
-    before and after), ``alt_agl_m``, ``tilt_deg`` (off nadir), ``look_heading_deg``,
-    ``trigger_distance_m``. Returns the path written.
+    before and after), ``alt_agl_m``, ``tilt_deg`` (off nadir), ``look_heading_deg`` (true
+    bearing the camera looks toward), ``trigger_distance_m``. Returns the path written.
     """
     return _write(path, flight_lines_geojson_bytes(plan), "flight lines")
 
@@ -486,7 +498,7 @@ def write_stations_geojson(plan: SurveyPlan, path: str | os.PathLike[str]) -> Pa
     Feature ``id`` and property ``station`` are the 0-based index in flight order. Properties:
     ``pass``, ``line``, ``station``, ``kind``, ``lat_deg``, ``lon_deg``, ``alt_rel_home_m``
     (commanded altitude above home), ``alt_agl_m`` (above the ground below), ``heading_deg``
-    (bearing of flight), ``look_heading_deg`` (bearing the optical axis points toward),
+    (true bearing of flight), ``look_heading_deg`` (true bearing the optical axis points toward),
     ``tilt_deg`` (off nadir), ``gsd_cm`` (where the optical axis meets the ground).
     """
     return _write(path, stations_geojson_bytes(plan), "stations")

@@ -7,7 +7,7 @@ One ``Document`` with a ``LookAt`` on the area, shared styles, and folders in th
 - Flight path: the path the vehicle flies, from the mission's own positional items
   (take-off, waypoints, return to launch), as a 3D ``LineString``;
 - Survey lines: one sub-folder per pass, one ``LineString`` per camera-on segment;
-- Stations: one ``Point`` per exposure, thinned evenly when there are more than
+- Stations: one ``Point`` per exposure, every k-th only when there are more than
   ``max_stations`` (the folder's description says so and how many are shown);
 - Home (and the entry of the first line) placemarks.
 
@@ -197,16 +197,19 @@ def _style(
         _sub(poly_style, "color", poly)
 
 
-def mission_track(plan: SurveyPlan) -> tuple[list[tuple[float, float, float]], bool]:
+def mission_track(
+    plan: SurveyPlan, home_alt_amsl_m: float | None = None
+) -> tuple[list[tuple[float, float, float]], bool]:
     """The flown path from the mission's positional items: (lon deg, lat deg, alt above home m).
 
     Starts and ends on the ground at home; a take-off or waypoint at 0, 0 (PX4, ArduPilot:
     "here") stays where the vehicle is; return to launch goes home at the last altitude, then
     down. Returns the points and whether any item flies above terrain (then its altitude is
-    above ground, not above home).
+    above ground, not above home). ``home_alt_amsl_m`` turns items given above sea level into
+    altitudes above home (default: the plan's home altitude when known).
     """
     home = plan.home
-    home_amsl = _home_amsl(plan)
+    home_amsl = _home_amsl(plan) if home_alt_amsl_m is None else home_alt_amsl_m
     points = [(home.lon_deg, home.lat_deg, 0.0)]
     terrain = False
     for item in plan.mission.items:
@@ -247,13 +250,15 @@ def _home_amsl(plan: SurveyPlan) -> float | None:
     return float(value)
 
 
-def thin_indices(n: int, max_count: int) -> np.ndarray:
-    """At most ``max_count`` indices of ``range(n)``, evenly spread, first and last included."""
-    if n <= max_count:
-        return np.arange(n)
-    if max_count <= 1:
-        return np.zeros(min(max_count, n), dtype=np.int64)
-    return np.unique(np.round(np.linspace(0, n - 1, max_count)).astype(np.int64))
+def thin_step(n: int, max_count: int) -> int:
+    """Keep every ``thin_step``-th of ``n`` items so that at most ``max_count`` remain (>= 1)."""
+    return 1 if n <= max_count or max_count <= 0 else -(-n // max_count)
+
+
+def ordinal(k: int) -> str:
+    """1st, 2nd, 3rd, 4th, ..., 11th, 12th, 13th, ..., 21st."""
+    suffix = "th" if 10 <= k % 100 <= 20 else {1: "st", 2: "nd", 3: "rd"}.get(k % 10, "th")
+    return f"{k}{suffix}"
 
 
 def kml_document(
@@ -265,7 +270,7 @@ def kml_document(
     """The KML tree of ``plan`` (see :func:`write_kml`)."""
     if home_alt_amsl_m is None:
         home_alt_amsl_m = _home_amsl(plan)
-    track, terrain = mission_track(plan)
+    track, terrain = mission_track(plan, home_alt_amsl_m)
     alts = _altitudes(home_alt_amsl_m)
     path_alts = alts
     if terrain:
@@ -356,18 +361,16 @@ def kml_document(
                 mark, [(lon[k, 0], lat[k, 0], alt), (lon[k, 1], lat[k, 1], alt)], alts.mode
             )
 
-    shown = thin_indices(len(st), max_stations)
-    thinned = len(shown) < len(st)
-    stations_folder = _folder(
-        doc,
-        "Stations",
-        (
-            f"{len(shown)} of {len(st)} exposure stations shown (every "
-            f"{len(st) / max(len(shown), 1):.1f}th, evenly thinned); stations.geojson has all."
-            if thinned
-            else f"All {len(st)} exposure stations."
-        ),
-    )
+    step = thin_step(len(st), max_stations)
+    shown = np.arange(0, len(st), step) if max_stations > 0 else np.zeros(0, dtype=np.int64)
+    if len(shown) == len(st):
+        about = f"All {len(st)} exposure stations."
+    else:
+        about = (
+            f"Every {ordinal(step)} of the {len(st)} exposure stations in flight order "
+            f"({len(shown)} shown); stations.geojson holds all of them."
+        )
+    stations_folder = _folder(doc, "Stations", about)
     for k in shown.tolist():
         mark = _placemark(
             stations_folder,
@@ -443,7 +446,7 @@ def write_kml(
 ) -> Path:
     """Write ``plan`` as a KML 2.2 document (mission.kml) that opens in Google Earth, atomically.
 
-    ``max_stations``: exposure stations drawn as points at most (evenly thinned beyond, and
+    ``max_stations``: exposure stations drawn as points at most (every k-th beyond, and
     the Stations folder says so). ``home_alt_amsl_m``: home altitude above mean sea level, m;
     when None, ``plan.home.alt_amsl_m`` is used unless it is 0 (unknown). With it, airborne
     altitudes are ``absolute``; without, ``relativeToGround`` (see the module docstring).
