@@ -28,6 +28,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "sim": ("sim", "Run a simulated vehicle (ArduPilot or PX4 flavour) on a MAVLink URL."),
     "monitor": ("monitor", "Record camera triggers and telemetry during a flight."),
     "geotag": ("geotag", "Geotag frames from the flight's own telemetry log."),
+    "check": ("check", "Check coverage, overlap, B/H, GSD and blur of images or a plan."),
 }
 
 log = logging.getLogger("sfap")

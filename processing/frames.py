@@ -1,0 +1,72 @@
+"""The frames a coverage check works on: geotagged images, or a plan's stations.
+
+Camera attitude follows the Pix4D / OpenDroneMap camera convention, which the XMP tags
+``Camera:Yaw/Pitch/Roll`` carry: (0, 0, 0) is a camera looking straight down with the top of
+the image toward north; ``yaw_deg`` turns it clockwise seen from above (the bearing of the image
+top), ``pitch_deg`` tilts the optical axis off nadir toward the image top, ``roll_deg`` turns it
+about the image's vertical axis. With roll 0, (yaw, pitch) are exactly the
+(``up_bearing_deg``, ``tilt_deg``) of :mod:`planner.footprint`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import StrEnum
+
+import numpy as np
+from numpy.typing import NDArray
+
+from planner.camera import Camera
+
+F64 = NDArray[np.float64]
+
+
+class AltitudeReference(StrEnum):
+    AMSL = "amsl"  # above mean sea level (EXIF GPSAltitude, usually)
+    ELLIPSOID = "ellipsoid"  # above the WGS84 ellipsoid
+    REL_HOME = "rel_home"  # above the take-off point
+    AGL = "agl"  # above the ground below the camera
+
+
+class AttitudeSource(StrEnum):
+    XMP = "xmp"  # the image's own XMP camera tags
+    PLAN = "plan"  # a planned station
+    ASSUMED_NADIR = "assumed_nadir"  # none recorded: nadir, image top along the track
+
+
+@dataclass(frozen=True, kw_only=True)
+class Frames:
+    """One row per frame; columns are numpy arrays of equal length (tuple for names).
+
+    - ``name``: image file name (or ``"pass-line-station"`` for planned stations).
+    - ``lon_deg``, ``lat_deg``: WGS84 camera position.
+    - ``alt_m``: camera altitude, referenced as ``alt_reference`` says.
+    - ``yaw_deg``, ``pitch_deg``, ``roll_deg``: camera attitude (module docstring).
+    - ``time_utc_s``: capture time, POSIX seconds UTC, or None when not known (plan).
+    - ``exposure_s``: exposure time from EXIF, or None.
+    - ``line_index``: the flight line of each frame when known (plan), else None.
+    """
+
+    name: tuple[str, ...]
+    lon_deg: F64
+    lat_deg: F64
+    alt_m: F64
+    alt_reference: AltitudeReference
+    yaw_deg: F64
+    pitch_deg: F64
+    roll_deg: F64
+    attitude_source: AttitudeSource
+    camera: Camera
+    time_utc_s: F64 | None = None
+    exposure_s: F64 | None = None
+    line_index: NDArray[np.int32] | None = None
+
+    def __post_init__(self) -> None:
+        n = len(self.name)
+        for key in ("lon_deg", "lat_deg", "alt_m", "yaw_deg", "pitch_deg", "roll_deg"):
+            value = getattr(self, key)
+            if value.shape != (n,):
+                raise ValueError(f"Frames.{key} has shape {value.shape}, expected ({n},)")
+
+    def __len__(self) -> int:
+        return len(self.name)
