@@ -14,6 +14,7 @@ from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import shapely
 from shapely.geometry import MultiPolygon, Polygon
 from shapely.validation import explain_validity
@@ -179,7 +180,12 @@ def _kml_ring(boundary: ET.Element, file: Path, what: str) -> list[list[float]]:
 
 
 def _check_polygon(polygon: Polygon, file: Path) -> None:
-    if polygon.is_empty or polygon.area == 0:
+    if polygon.is_empty:
+        raise AreaError(f"{file}: a polygon is empty")
+    xy = np.asarray(polygon.exterior.coords)
+    span = xy - xy[0]
+    cross = span[1:, 0] * span[:-1, 1] - span[1:, 1] * span[:-1, 0]
+    if np.all(np.abs(cross) < 1e-18):
         raise AreaError(f"{file}: a polygon is empty (all its corners on a line)")
     if not polygon.is_valid:
         reason = explain_validity(polygon)

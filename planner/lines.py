@@ -238,12 +238,14 @@ def _segments_for_line(
         p1 = hi - rect.u_max_m
         if p1 < p0:
             p0 = p1 = (p0 + p1) / 2.0
-        for s_lo, s_hi, lo_blocked, hi_blocked in _subtract((p0, p1), holes):
-            # Beside a blocked zone, leave room for the camera-off point half a spacing past
-            # the last station, whichever way the segment is flown.
+        for s_lo, s_hi, _, _ in _subtract((p0, p1), holes):
+            # The camera-off point lies half a spacing past the last station, whichever way the
+            # segment is flown: keep it out of the nearest blocked zone on either side.
             margin = trigger_distance_m / 2.0
-            t_lo = s_lo + (margin if lo_blocked else 0.0)
-            t_hi = s_hi - (margin if hi_blocked else 0.0)
+            next_hole = min((h_lo for h_lo, _ in holes if h_lo >= s_hi - _EPS), default=math.inf)
+            prev_hole = max((h_hi for _, h_hi in holes if h_hi <= s_lo + _EPS), default=-math.inf)
+            t_lo = max(s_lo, prev_hole + margin)
+            t_hi = min(s_hi, next_hole - margin)
             s_lo, s_hi = (t_lo, t_hi) if t_hi >= t_lo else ((s_lo + s_hi) / 2.0,) * 2
             length = s_hi - s_lo
             if length < -_EPS:

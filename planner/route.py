@@ -16,7 +16,7 @@ from collections.abc import Sequence
 
 import numpy as np
 import shapely
-from shapely.geometry import LineString, Point, Polygon
+from shapely.geometry import Polygon
 
 from .errors import PlanningError
 
@@ -24,33 +24,50 @@ Point2 = tuple[float, float]
 
 
 class Router:
-    """Shortest collision-free legs around a set of no-fly polygons (metres, any planar frame)."""
+    """Shortest collision-free legs around a set of no-fly polygons (metres, any planar frame).
+
+    A leg is clear when it does not enter the zones shrunk by 1 cm: legs that only touch a
+    zone's edge (a camera-off point placed on the clearance boundary) are allowed. Visibility
+    tests are batched through shapely's vectorized predicates.
+    """
+
+    _TOUCH_TOLERANCE_M = 0.01
 
     def __init__(self, zones: Sequence[Polygon], margin_m: float = 1.0) -> None:
-        self._zones = [z for z in zones if not z.is_empty]
-        if not self._zones:
-            self._union = None
-            self._nodes: list[Point2] = []
+        zones = [z for z in zones if not z.is_empty]
+        self._core: shapely.Geometry | None = None
+        self._nodes = np.zeros((0, 2))
+        self._adjacency: dict[int, list[tuple[int, float]]] | None = None
+        if not zones:
             return
-        self._union = shapely.union_all(self._zones)
-        shapely.prepare(self._union)
+        union = shapely.union_all(zones)
+        self._core = union.buffer(-self._TOUCH_TOLERANCE_M)
+        shapely.prepare(self._core)
         # Corners of the zones pushed outward a little, so that legs between them graze nothing.
-        grown = shapely.union_all([z.buffer(margin_m, join_style="mitre") for z in self._zones])
+        grown = union.buffer(margin_m, join_style="mitre")
         nodes: list[Point2] = []
         for poly in getattr(grown, "geoms", [grown]):
             simple = poly.simplify(margin_m * 0.5, preserve_topology=True)
             for ring in [simple.exterior, *simple.interiors]:
                 nodes.extend((float(x), float(y)) for x, y in list(ring.coords)[:-1])
-        self._nodes = [n for n in nodes if not self._union.contains(Point(n))]
-        self._adjacency: dict[int, list[tuple[int, float]]] | None = None
+        points = np.asarray(nodes, float).reshape(-1, 2)
+        inside = shapely.intersects(self._core, shapely.points(points))
+        self._nodes = points[~inside]
 
     def is_clear(self, a: Point2, b: Point2) -> bool:
-        if self._union is None:
+        if self._core is None:
             return True
-        if a == b:
-            return not self._union.contains(Point(a))
-        leg = LineString([a, b])
-        return not self._union.intersects(leg) or self._union.intersection(leg).length < 1e-6
+        return bool(self._clear_from(a, np.asarray([b], float))[0])
+
+    def _clear_from(self, a: Point2, targets: np.ndarray) -> np.ndarray:
+        """For each target, whether the leg a -> target is clear (vectorized)."""
+        if self._core is None or len(targets) == 0:
+            return np.ones(len(targets), bool)
+        coords = np.empty((len(targets), 2, 2))
+        coords[:, 0] = a
+        coords[:, 1] = targets
+        legs = shapely.linestrings(coords)
+        return ~shapely.intersects(self._core, legs)
 
     def path(self, a: Point2, b: Point2) -> list[Point2]:
         """Points from a to b (both included) whose legs cross no zone."""
@@ -59,15 +76,11 @@ class Router:
         graph = self._graph()
         n = len(self._nodes)
         start, goal = n, n + 1
-        points = [*self._nodes, a, b]
-        edges = {k: list(v) for k, v in graph.items()}
-        edges[start] = []
-        for i, node in enumerate(self._nodes):
-            if self.is_clear(a, node):
-                d = math.dist(a, node)
-                edges[start].append((i, d))
-            if self.is_clear(node, b):
-                edges.setdefault(i, []).append((goal, math.dist(node, b)))
+        edges: dict[int, list[tuple[int, float]]] = {start: []}
+        from_a = np.nonzero(self._clear_from(a, self._nodes))[0]
+        to_b = set(np.nonzero(self._clear_from(b, self._nodes))[0].tolist())
+        for i in from_a:
+            edges[start].append((int(i), math.dist(a, self._nodes[i])))
         best = {start: 0.0}
         previous: dict[int, int] = {}
         queue = [(0.0, start)]
@@ -77,7 +90,10 @@ class Router:
                 break
             if dist > best.get(k, math.inf):
                 continue
-            for j, w in edges.get(k, []):
+            neighbours = edges.get(k) or graph.get(k, [])
+            if k in to_b:
+                neighbours = [*neighbours, (goal, math.dist(tuple(self._nodes[k]), b))]
+            for j, w in neighbours:
                 nd = dist + w
                 if nd < best.get(j, math.inf):
                     best[j] = nd
@@ -91,18 +107,20 @@ class Router:
         route = [goal]
         while route[-1] != start:
             route.append(previous[route[-1]])
-        return [points[k] for k in reversed(route)]
+        points = {start: a, goal: b}
+        return [points.get(k) or (float(self._nodes[k][0]), float(self._nodes[k][1])) for k in reversed(route)]
 
     def _graph(self) -> dict[int, list[tuple[int, float]]]:
         if self._adjacency is None:
             adjacency: dict[int, list[tuple[int, float]]] = {i: [] for i in range(len(self._nodes))}
-            for i, p in enumerate(self._nodes):
-                for j in range(i + 1, len(self._nodes)):
-                    q = self._nodes[j]
-                    if self.is_clear(p, q):
-                        d = math.dist(p, q)
-                        adjacency[i].append((j, d))
-                        adjacency[j].append((i, d))
+            for i in range(len(self._nodes) - 1):
+                others = self._nodes[i + 1 :]
+                clear = self._clear_from((self._nodes[i][0], self._nodes[i][1]), others)
+                for j in np.nonzero(clear)[0]:
+                    k = i + 1 + int(j)
+                    d = float(np.hypot(*(self._nodes[k] - self._nodes[i])))
+                    adjacency[i].append((k, d))
+                    adjacency[k].append((i, d))
             self._adjacency = adjacency
         return self._adjacency
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import sys
 import math
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -54,7 +55,7 @@ def echo_table(rows: list[tuple[str, str]], title: str | None = None) -> None:
 @contextmanager
 def progress(label: str, total: int, enabled: bool = True) -> Iterator[Callable[[int], None]]:
     """A progress bar on stderr; yields ``advance(n)`` for library callbacks."""
-    stream = click.get_text_stream("stderr")
+    stream = sys.stderr
     if not enabled or total <= 0 or not stream.isatty():
         yield lambda n: None
         return

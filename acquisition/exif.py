@@ -1,0 +1,697 @@
+"""Reading and writing the tags of a JPEG frame: the only module that knows EXIF rationals and XMP.
+
+What is read (:func:`read_tags`): capture time (``DateTimeOriginal`` + ``SubSecTimeOriginal`` +
+``OffsetTimeOriginal``, or the XMP ``exif:DateTimeOriginal`` that carries all three), make,
+model, focal length, image size, exposure time, the GPS position already in the file (EXIF, with
+the altitude reference applied), the Pix4D camera attitude (XMP namespace
+``http://pix4d.com/camera/1.0/``) and DJI's XMP position (``drone-dji:GpsLatitude`` ...).
+
+What is written (:func:`write_geotag`): EXIF GPS (GPSLatitude/Ref, GPSLongitude/Ref, GPSAltitude
+and GPSAltitudeRef, GPSDateStamp/GPSTimeStamp, GPSImgDirection/Ref, GPSMapDatum, GPSVersionID),
+Pix4D XMP ``Camera:Yaw/Pitch/Roll/GPSXYAccuracy/GPSZAccuracy``, and, when the file already carries
+them, DJI's XMP ``GpsLatitude``, ``GpsLongitude`` (and the misspelt ``GpsLongtitude`` of older
+firmware), ``AbsoluteAltitude`` and ``RelativeAltitude``: OpenDroneMap and Metashape prefer DJI's
+XMP position over EXIF, so leaving the old ones would undo the geotag (REFERENCES.md section 4).
+
+Writing is lossless: the metadata segments are rewritten by exiv2 (through pyexiv2) in memory and
+the file is replaced atomically; the entropy-coded image data (:func:`compressed_image_data`) is
+byte-identical before and after, which the tests check.
+
+Angles: yaw clockwise from true north, 0-360; pitch and roll in degrees as in Pix4D's camera
+namespace (a level, nadir-looking camera has pitch 0 and roll 0).
+"""
+
+from __future__ import annotations
+
+import calendar
+import logging
+import math
+import os
+import re
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from fractions import Fraction
+from pathlib import Path
+from typing import Any
+
+import pyexiv2
+
+from planner.outputs import atomic_write_bytes
+
+from .errors import GeotagError
+
+log = logging.getLogger(__name__)
+
+PIX4D_CAMERA_NS = "http://pix4d.com/camera/1.0/"
+DJI_NS = "http://www.dji.com/drone-dji/1.0/"
+
+# exiv2 only knows the prefixes it has been told about; the file itself registers them when it
+# carries them, a fresh file does not.
+_NAMESPACES_REGISTERED = False
+
+
+def _register_namespaces() -> None:
+    global _NAMESPACES_REGISTERED
+    if _NAMESPACES_REGISTERED:
+        return
+    for namespace, prefix in ((PIX4D_CAMERA_NS, "Camera"), (DJI_NS, "drone-dji")):
+        try:
+            pyexiv2.registerNs(namespace, prefix)
+        except (RuntimeError, KeyError, ValueError):
+            # Already known to exiv2 (registered by a file read earlier): that is fine.
+            log.debug("XMP namespace %s already registered", namespace)
+    _NAMESPACES_REGISTERED = True
+
+
+pyexiv2.set_log_level(3)  # exiv2 warnings about vendor makernotes are not ours to show
+
+_GPS_KEYS = (
+    "Exif.GPSInfo.GPSVersionID",
+    "Exif.GPSInfo.GPSLatitudeRef",
+    "Exif.GPSInfo.GPSLatitude",
+    "Exif.GPSInfo.GPSLongitudeRef",
+    "Exif.GPSInfo.GPSLongitude",
+    "Exif.GPSInfo.GPSAltitudeRef",
+    "Exif.GPSInfo.GPSAltitude",
+    "Exif.GPSInfo.GPSTimeStamp",
+    "Exif.GPSInfo.GPSDateStamp",
+    "Exif.GPSInfo.GPSImgDirectionRef",
+    "Exif.GPSInfo.GPSImgDirection",
+    "Exif.GPSInfo.GPSMapDatum",
+)
+_DJI_POSITION_KEYS = (
+    "Xmp.drone-dji.GpsLatitude",
+    "Xmp.drone-dji.GpsLongitude",
+    "Xmp.drone-dji.GpsLongtitude",
+    "Xmp.drone-dji.AbsoluteAltitude",
+    "Xmp.drone-dji.RelativeAltitude",
+)
+_PIX4D_KEYS = (
+    "Xmp.Camera.Yaw",
+    "Xmp.Camera.Pitch",
+    "Xmp.Camera.Roll",
+    "Xmp.Camera.GPSXYAccuracy",
+    "Xmp.Camera.GPSZAccuracy",
+)
+
+
+@dataclass(frozen=True, kw_only=True)
+class ImageTags:
+    """What one frame says about itself. Absent tags are None.
+
+    - ``capture_time_s``: POSIX seconds of the capture. UTC when ``capture_time_zone_known``
+      (the file carries OffsetTimeOriginal); otherwise the camera's wall clock read as if it
+      were UTC (the clock offset, time zone included, is estimated by the matcher).
+    - ``gps_alt_amsl_m``: EXIF GPSAltitude with its reference applied (negative below sea level).
+    - ``gps_time_utc_s``: GPSDateStamp + GPSTimeStamp (UTC).
+    - ``camera_yaw_deg`` ...: Pix4D XMP camera attitude; ``dji_*``: DJI XMP position.
+    """
+
+    path: str
+    capture_time_s: float | None = None
+    capture_time_zone_known: bool = False
+    capture_time_text: str | None = None
+    make: str | None = None
+    model: str | None = None
+    focal_length_mm: float | None = None
+    width_px: int | None = None
+    height_px: int | None = None
+    exposure_time_s: float | None = None
+    gps_lat_deg: float | None = None
+    gps_lon_deg: float | None = None
+    gps_alt_amsl_m: float | None = None
+    gps_time_utc_s: float | None = None
+    camera_yaw_deg: float | None = None
+    camera_pitch_deg: float | None = None
+    camera_roll_deg: float | None = None
+    xy_accuracy_m: float | None = None
+    z_accuracy_m: float | None = None
+    dji_lat_deg: float | None = None
+    dji_lon_deg: float | None = None
+    dji_alt_amsl_m: float | None = None
+    dji_alt_rel_home_m: float | None = None
+
+    @property
+    def name(self) -> str:
+        return Path(self.path).name
+
+    @property
+    def has_dji_position(self) -> bool:
+        return self.dji_lat_deg is not None or self.dji_lon_deg is not None
+
+
+@dataclass(frozen=True, kw_only=True)
+class GeoTag:
+    """The tags to write on one frame.
+
+    - ``lat_deg``, ``lon_deg``: WGS84; ``alt_amsl_m``: metres above mean sea level (None: no
+      altitude written; COLMAP then creates no position prior).
+    - ``time_utc_s``: when the frame was taken (POSIX seconds, UTC): GPSDateStamp/GPSTimeStamp.
+    - ``yaw_deg`` (0-360, clockwise from true north; also written as GPSImgDirection),
+      ``pitch_deg``, ``roll_deg``: camera attitude in the Pix4D convention (nadir = 0, 0).
+    - ``xy_accuracy_m``, ``z_accuracy_m``: one-sigma position accuracy (Pix4D GPSXYAccuracy
+      and GPSZAccuracy).
+    - ``alt_rel_home_m``: written to DJI's RelativeAltitude when the file carries that tag.
+    """
+
+    lat_deg: float
+    lon_deg: float
+    alt_amsl_m: float | None = None
+    time_utc_s: float | None = None
+    yaw_deg: float | None = None
+    pitch_deg: float | None = None
+    roll_deg: float | None = None
+    xy_accuracy_m: float | None = None
+    z_accuracy_m: float | None = None
+    alt_rel_home_m: float | None = None
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.lat_deg) and -90.0 <= self.lat_deg <= 90.0):
+            raise GeotagError(f"latitude {self.lat_deg} deg is outside -90..90")
+        if not (math.isfinite(self.lon_deg) and -180.0 <= self.lon_deg <= 180.0):
+            raise GeotagError(f"longitude {self.lon_deg} deg is outside -180..180")
+        for name in (
+            "alt_amsl_m",
+            "time_utc_s",
+            "yaw_deg",
+            "pitch_deg",
+            "roll_deg",
+            "alt_rel_home_m",
+        ):
+            value = getattr(self, name)
+            if value is not None and not math.isfinite(value):
+                raise GeotagError(f"{name} is {value}; give a finite number or None")
+        for name in ("xy_accuracy_m", "z_accuracy_m"):
+            value = getattr(self, name)
+            if value is not None and not (math.isfinite(value) and value >= 0.0):
+                raise GeotagError(f"{name} is {value}; accuracies are finite and >= 0 m")
+
+
+# --------------------------------------------------------------------------------------------
+# Value conversions (EXIF rationals, dates)
+
+
+def _rational(text: str) -> float | None:
+    """'num/den' (or a plain number) as a float; None for a zero denominator or garbage."""
+    text = text.strip()
+    try:
+        if "/" in text:
+            num, den = text.split("/", 1)
+            if float(den) == 0.0:
+                return None
+            return float(num) / float(den)
+        return float(text)
+    except ValueError:
+        return None
+
+
+def _rationals(text: str) -> list[float] | None:
+    values = [_rational(part) for part in text.split()]
+    if not values or any(v is None for v in values):
+        return None
+    return [float(v) for v in values if v is not None]
+
+
+def _dms_to_deg(text: str, ref: str | None, negative_ref: str) -> float | None:
+    parts = _rationals(text)
+    if parts is None:
+        return None
+    parts = [*parts, 0.0, 0.0][:3]
+    value = parts[0] + parts[1] / 60.0 + parts[2] / 3600.0
+    if ref is not None and ref.strip().upper().startswith(negative_ref):
+        value = -value
+    return value
+
+
+def _to_rational_text(value: float, denominator: int) -> str:
+    return f"{round(abs(value) * denominator)}/{denominator}"
+
+
+def _deg_to_dms_text(value_deg: float) -> str:
+    """Degrees as EXIF degrees/minutes/seconds rationals; seconds to 1e-5 s (0.3 mm)."""
+    value = abs(value_deg)
+    degrees = int(value)
+    minutes_f = (value - degrees) * 60.0
+    minutes = int(minutes_f)
+    seconds_units = round((minutes_f - minutes) * 60.0 * 100_000)
+    if seconds_units >= 60 * 100_000:  # rounding carried into the next minute
+        seconds_units -= 60 * 100_000
+        minutes += 1
+        if minutes == 60:
+            minutes = 0
+            degrees += 1
+    return f"{degrees}/1 {minutes}/1 {seconds_units}/100000"
+
+
+_DATE_RE = re.compile(
+    r"^\s*(\d{4})[:-](\d{2})[:-](\d{2})[ T](\d{2}):(\d{2}):(\d{2})(\.\d+)?\s*(.*)$"
+)
+_ZONE_RE = re.compile(r"^([+-])(\d{2}):?(\d{2})$")
+
+
+def _parse_zone(text: str | None) -> int | None:
+    """'+02:00' / '-0500' / 'Z' as seconds east of UTC; None when absent or unreadable."""
+    if text is None:
+        return None
+    text = text.strip()
+    if text.upper() == "Z":
+        return 0
+    match = _ZONE_RE.match(text)
+    if match is None:
+        return None
+    sign = 1 if match.group(1) == "+" else -1
+    return sign * (int(match.group(2)) * 3600 + int(match.group(3)) * 60)
+
+
+def parse_capture_time(
+    date_time: str, sub_sec: str | None = None, zone: str | None = None
+) -> tuple[float, bool] | None:
+    """An EXIF/XMP date-time (with optional sub-seconds and zone) as (POSIX s, zone known).
+
+    Without a zone the wall-clock time is read as UTC and ``zone known`` is False.
+    Returns None for an unreadable or blank date (cameras write "0000:00:00 00:00:00").
+    """
+    match = _DATE_RE.match(date_time)
+    if match is None:
+        return None
+    year, month, day, hour, minute, second = (int(match.group(k)) for k in range(1, 7))
+    if year == 0 or month == 0 or day == 0:
+        return None
+    try:
+        stamp = float(calendar.timegm((year, month, day, hour, minute, second, 0, 0, 0)))
+        datetime(year, month, day, hour, minute, second)  # validates the day of the month
+    except ValueError:
+        return None
+    fraction = match.group(7)
+    if fraction:
+        stamp += float("0" + fraction)
+    elif sub_sec and sub_sec.strip().isdigit():
+        digits = sub_sec.strip()
+        stamp += int(digits) / 10 ** len(digits)
+    zone_s = _parse_zone(match.group(8) or None)
+    if zone_s is None:
+        zone_s = _parse_zone(zone)
+    if zone_s is not None:
+        stamp -= zone_s
+    return stamp, zone_s is not None
+
+
+def _gps_time(date_stamp: str | None, time_stamp: str | None) -> float | None:
+    if not date_stamp or not time_stamp:
+        return None
+    hms = _rationals(time_stamp)
+    match = re.match(r"^\s*(\d{4})[:-](\d{2})[:-](\d{2})", date_stamp)
+    if hms is None or len(hms) != 3 or match is None:
+        return None
+    try:
+        day = calendar.timegm(
+            (int(match.group(1)), int(match.group(2)), int(match.group(3)), 0, 0, 0, 0, 0, 0)
+        )
+    except ValueError:
+        return None
+    return float(day) + hms[0] * 3600.0 + hms[1] * 60.0 + hms[2]
+
+
+def _float(text: str | None) -> float | None:
+    if text is None:
+        return None
+    try:
+        value = float(str(text).strip())
+    except ValueError:
+        return None
+    return value if math.isfinite(value) else None
+
+
+# --------------------------------------------------------------------------------------------
+# Reading
+
+
+def _open(data: bytes, path: str | os.PathLike[str]) -> pyexiv2.ImageData:
+    try:
+        return pyexiv2.ImageData(data)
+    except (RuntimeError, ValueError, OSError) as error:
+        raise GeotagError(
+            f"{path}: not a readable image ({error}); remove it or replace it"
+        ) from error
+
+
+def _read_maps(
+    image: pyexiv2.ImageData, path: str | os.PathLike[str]
+) -> tuple[dict[str, Any], dict[str, Any]]:
+    try:
+        exif = image.read_exif()
+    except (RuntimeError, ValueError, UnicodeDecodeError) as error:
+        raise GeotagError(f"{path}: EXIF cannot be read ({error})") from error
+    try:
+        xmp = image.read_xmp()
+    except (RuntimeError, ValueError, UnicodeDecodeError) as error:
+        log.warning("%s: XMP cannot be read (%s); ignoring it", path, error)
+        xmp = {}
+    return exif, xmp
+
+
+def read_tags(path: str | os.PathLike[str]) -> ImageTags:
+    """Read the tags of one JPEG. Raises :class:`GeotagError` when the file is unreadable."""
+    _register_namespaces()
+    with open(path, "rb") as handle:
+        head = handle.read(2)
+    if head != b"\xff\xd8":
+        raise GeotagError(f"{path}: not a JPEG file (no SOI marker); remove it from the folder")
+    try:
+        # From the path, exiv2 reads the metadata segments only (5x faster than the whole file).
+        image = pyexiv2.Image(os.fspath(path))
+    except (RuntimeError, ValueError, OSError) as error:
+        raise GeotagError(
+            f"{path}: not a readable image ({error}); remove or replace it"
+        ) from error
+    try:
+        exif, xmp = _read_maps(image, path)
+        width = image.get_pixel_width() or None
+        height = image.get_pixel_height() or None
+    finally:
+        image.close()
+    return tags_from_maps(str(path), exif, xmp, width_px=width, height_px=height)
+
+
+def tags_from_maps(
+    path: str,
+    exif: dict[str, Any],
+    xmp: dict[str, Any],
+    *,
+    width_px: int | None = None,
+    height_px: int | None = None,
+) -> ImageTags:
+    """Build :class:`ImageTags` from pyexiv2's key -> text maps."""
+
+    def get(key: str) -> str | None:
+        value = exif.get(key)
+        if value is None:
+            value = xmp.get(key)
+        if isinstance(value, list):
+            value = value[0] if value else None
+        if isinstance(value, dict):  # XMP language alternatives
+            value = next(iter(value.values()), None)
+        return None if value is None else str(value)
+
+    capture: tuple[float, bool] | None = None
+    capture_text: str | None = None
+    original = get("Exif.Photo.DateTimeOriginal")
+    if original:
+        capture_text = original
+        capture = parse_capture_time(
+            original, get("Exif.Photo.SubSecTimeOriginal"), get("Exif.Photo.OffsetTimeOriginal")
+        )
+    if capture is None:
+        for key in ("Xmp.exif.DateTimeOriginal", "Xmp.photoshop.DateCreated", "Xmp.xmp.CreateDate"):
+            text = get(key)
+            if text:
+                capture = parse_capture_time(text)
+                if capture is not None:
+                    capture_text = text
+                    break
+
+    lat = lon = alt = None
+    if get("Exif.GPSInfo.GPSLatitude") and get("Exif.GPSInfo.GPSLongitude"):
+        lat = _dms_to_deg(
+            get("Exif.GPSInfo.GPSLatitude") or "", get("Exif.GPSInfo.GPSLatitudeRef"), "S"
+        )
+        lon = _dms_to_deg(
+            get("Exif.GPSInfo.GPSLongitude") or "", get("Exif.GPSInfo.GPSLongitudeRef"), "W"
+        )
+    alt_text = get("Exif.GPSInfo.GPSAltitude")
+    if alt_text:
+        alt = _rational(alt_text)
+        if alt is not None and (get("Exif.GPSInfo.GPSAltitudeRef") or "0").strip() == "1":
+            alt = -alt
+
+    exposure = get("Exif.Photo.ExposureTime")
+    focal = get("Exif.Photo.FocalLength")
+    if width_px is None:
+        width_px = int(_float(get("Exif.Photo.PixelXDimension")) or 0) or None
+    if height_px is None:
+        height_px = int(_float(get("Exif.Photo.PixelYDimension")) or 0) or None
+    dji_lon = _float(get("Xmp.drone-dji.GpsLongitude"))
+    if dji_lon is None:
+        dji_lon = _float(get("Xmp.drone-dji.GpsLongtitude"))
+    make = get("Exif.Image.Make")
+    model = get("Exif.Image.Model")
+    return ImageTags(
+        path=path,
+        capture_time_s=None if capture is None else capture[0],
+        capture_time_zone_known=False if capture is None else capture[1],
+        capture_time_text=capture_text,
+        make=make.strip() if make else None,
+        model=model.strip() if model else None,
+        focal_length_mm=_rational(focal) if focal else None,
+        width_px=width_px,
+        height_px=height_px,
+        exposure_time_s=_rational(exposure) if exposure else None,
+        gps_lat_deg=lat,
+        gps_lon_deg=lon,
+        gps_alt_amsl_m=alt,
+        gps_time_utc_s=_gps_time(
+            get("Exif.GPSInfo.GPSDateStamp"), get("Exif.GPSInfo.GPSTimeStamp")
+        ),
+        camera_yaw_deg=_float(get("Xmp.Camera.Yaw")),
+        camera_pitch_deg=_float(get("Xmp.Camera.Pitch")),
+        camera_roll_deg=_float(get("Xmp.Camera.Roll")),
+        xy_accuracy_m=_float(get("Xmp.Camera.GPSXYAccuracy")),
+        z_accuracy_m=_float(get("Xmp.Camera.GPSZAccuracy")),
+        dji_lat_deg=_float(get("Xmp.drone-dji.GpsLatitude")),
+        dji_lon_deg=dji_lon,
+        dji_alt_amsl_m=_float(get("Xmp.drone-dji.AbsoluteAltitude")),
+        dji_alt_rel_home_m=_float(get("Xmp.drone-dji.RelativeAltitude")),
+    )
+
+
+# --------------------------------------------------------------------------------------------
+# Writing
+
+
+def _exif_gps_values(tag: GeoTag) -> dict[str, str | None]:
+    values: dict[str, str | None] = {
+        "Exif.GPSInfo.GPSVersionID": "2 3 0 0",
+        "Exif.GPSInfo.GPSLatitudeRef": "N" if tag.lat_deg >= 0 else "S",
+        "Exif.GPSInfo.GPSLatitude": _deg_to_dms_text(tag.lat_deg),
+        "Exif.GPSInfo.GPSLongitudeRef": "E" if tag.lon_deg >= 0 else "W",
+        "Exif.GPSInfo.GPSLongitude": _deg_to_dms_text(tag.lon_deg),
+        "Exif.GPSInfo.GPSMapDatum": "WGS-84",
+    }
+    if tag.alt_amsl_m is not None:
+        values["Exif.GPSInfo.GPSAltitudeRef"] = "0" if tag.alt_amsl_m >= 0 else "1"
+        values["Exif.GPSInfo.GPSAltitude"] = _to_rational_text(tag.alt_amsl_m, 1000)
+    else:  # an old altitude would now belong to another place
+        values["Exif.GPSInfo.GPSAltitudeRef"] = None
+        values["Exif.GPSInfo.GPSAltitude"] = None
+    if tag.time_utc_s is not None:
+        moment = datetime.fromtimestamp(tag.time_utc_s, tz=UTC)
+        seconds = Fraction(moment.second * 1_000_000 + moment.microsecond, 1_000_000)
+        millis = round(seconds * 1000)
+        values["Exif.GPSInfo.GPSDateStamp"] = moment.strftime("%Y:%m:%d")
+        values["Exif.GPSInfo.GPSTimeStamp"] = f"{moment.hour}/1 {moment.minute}/1 {millis}/1000"
+    else:
+        values["Exif.GPSInfo.GPSDateStamp"] = None
+        values["Exif.GPSInfo.GPSTimeStamp"] = None
+    if tag.yaw_deg is not None:
+        values["Exif.GPSInfo.GPSImgDirectionRef"] = "T"
+        values["Exif.GPSInfo.GPSImgDirection"] = _to_rational_text(tag.yaw_deg % 360.0, 100)
+    else:
+        values["Exif.GPSInfo.GPSImgDirectionRef"] = None
+        values["Exif.GPSInfo.GPSImgDirection"] = None
+    return values
+
+
+def _xmp_values(tag: GeoTag, existing_xmp: dict[str, Any]) -> dict[str, str | None]:
+    values: dict[str, str | None] = {}
+    pix4d = {
+        "Xmp.Camera.Yaw": tag.yaw_deg,
+        "Xmp.Camera.Pitch": tag.pitch_deg,
+        "Xmp.Camera.Roll": tag.roll_deg,
+        "Xmp.Camera.GPSXYAccuracy": tag.xy_accuracy_m,
+        "Xmp.Camera.GPSZAccuracy": tag.z_accuracy_m,
+    }
+    for key, value in pix4d.items():
+        if value is not None:
+            values[key] = f"{value:.6f}"
+        elif key in existing_xmp:
+            values[key] = None  # stale attitude of another pose: remove it
+    dji = {
+        "Xmp.drone-dji.GpsLatitude": f"{tag.lat_deg:+.9f}",
+        "Xmp.drone-dji.GpsLongitude": f"{tag.lon_deg:+.9f}",
+        "Xmp.drone-dji.GpsLongtitude": f"{tag.lon_deg:+.9f}",
+        "Xmp.drone-dji.AbsoluteAltitude": None
+        if tag.alt_amsl_m is None
+        else f"{tag.alt_amsl_m:+.3f}",
+        "Xmp.drone-dji.RelativeAltitude": None
+        if tag.alt_rel_home_m is None
+        else f"{tag.alt_rel_home_m:+.3f}",
+    }
+    # XMP copies of the EXIF GPS tags (exif namespace), written by some cameras and editors.
+    xmp_exif = {
+        "Xmp.exif.GPSLatitude": _xmp_coordinate(tag.lat_deg, "N", "S"),
+        "Xmp.exif.GPSLongitude": _xmp_coordinate(tag.lon_deg, "E", "W"),
+        "Xmp.exif.GPSAltitude": None
+        if tag.alt_amsl_m is None
+        else _to_rational_text(tag.alt_amsl_m, 1000),
+        "Xmp.exif.GPSAltitudeRef": None
+        if tag.alt_amsl_m is None
+        else ("0" if tag.alt_amsl_m >= 0 else "1"),
+    }
+    for key, text in {**dji, **xmp_exif}.items():
+        # Only update what the file carries: adding DJI tags to another camera's file would lie
+        # about its origin. A carried value we cannot replace is removed rather than left stale.
+        if key in existing_xmp:
+            values[key] = text
+    return values
+
+
+def _xmp_coordinate(value_deg: float, positive: str, negative: str) -> str:
+    """XMP GPSCoordinate form 'DDD,MM.mmmmmmmk' (degrees, decimal minutes, hemisphere)."""
+    value = abs(value_deg)
+    degrees = int(value)
+    minutes = (value - degrees) * 60.0
+    return f"{degrees},{minutes:.8f}{positive if value_deg >= 0 else negative}"
+
+
+def geotag_bytes(data: bytes, tag: GeoTag, *, name: str = "<bytes>") -> bytes:
+    """The JPEG ``data`` with ``tag`` written into its EXIF and XMP; image data untouched."""
+    _register_namespaces()
+    image = _open(data, name)
+    try:
+        exif, xmp = _read_maps(image, name)
+        exif_values = _exif_gps_values(tag)
+        # Everything else in the GPS IFD (speed, track, DOP, status...) described the old fix.
+        for key in exif:
+            if key.startswith("Exif.GPSInfo.") and key not in exif_values:
+                exif_values[key] = None
+        # Deleting an absent tag is not an error worth a call into exiv2.
+        exif_values = {k: v for k, v in exif_values.items() if v is not None or k in exif}
+        try:
+            image.modify_exif(exif_values)
+            xmp_values = _xmp_values(tag, xmp)
+            if xmp_values:
+                image.modify_xmp(xmp_values)
+            result: bytes = image.get_bytes()
+        except (RuntimeError, ValueError) as error:
+            raise GeotagError(f"{name}: tags cannot be written ({error})") from error
+    finally:
+        image.close()
+    return result
+
+
+def write_geotag(
+    src: str | os.PathLike[str],
+    dst: str | os.PathLike[str],
+    tag: GeoTag,
+    *,
+    overwrite: bool = False,
+    check_image_data: bool = True,
+    atomic: bool = True,
+) -> Path:
+    """Write ``src`` with ``tag`` to ``dst`` (``dst`` may equal ``src``: in place).
+
+    With ``check_image_data`` the compressed image data of the result is compared with the
+    source's before anything is written; a difference raises :class:`GeotagError`. With
+    ``atomic`` (always for in-place writes) the file goes through a synced temporary file and
+    a rename; without, it is written directly, for a caller that stages a whole folder and
+    moves it into place at once (:func:`planner.outputs.staged_output_dir`).
+    """
+    data = Path(src).read_bytes()
+    tagged = geotag_bytes(data, tag, name=str(src))
+    if check_image_data and compressed_image_data(tagged) != compressed_image_data(data):
+        raise GeotagError(
+            f"{src}: writing the tags would change the image data; file left as it was"
+        )
+    same = os.path.abspath(src) == os.path.abspath(dst)
+    if atomic or same:
+        return atomic_write_bytes(dst, tagged, overwrite=overwrite or same)
+    target = Path(dst)
+    with target.open("wb" if overwrite else "xb") as handle:
+        handle.write(tagged)
+    return target
+
+
+def strip_gps(
+    src: str | os.PathLike[str],
+    dst: str | os.PathLike[str],
+    *,
+    attitude: bool = False,
+    overwrite: bool = False,
+) -> Path:
+    """Copy ``src`` to ``dst`` without its position: EXIF GPS and DJI XMP position tags removed.
+
+    With ``attitude`` the Pix4D XMP camera attitude and accuracy tags go too. Image data untouched.
+    """
+    _register_namespaces()
+    data = Path(src).read_bytes()
+    image = _open(data, src)
+    try:
+        exif, xmp = _read_maps(image, src)
+        gps_keys = {key: None for key in exif if key.startswith("Exif.GPSInfo.")}
+        if gps_keys:
+            image.modify_exif(gps_keys)
+        xmp_keys = [k for k in _DJI_POSITION_KEYS if k in xmp]
+        if attitude:
+            xmp_keys += [k for k in _PIX4D_KEYS if k in xmp]
+        if xmp_keys:
+            image.modify_xmp(dict.fromkeys(xmp_keys))
+        stripped: bytes = image.get_bytes()
+    finally:
+        image.close()
+    return atomic_write_bytes(dst, stripped, overwrite=overwrite)
+
+
+# --------------------------------------------------------------------------------------------
+# The image data itself
+
+
+_STANDALONE_MARKERS = {0x01, *range(0xD0, 0xD8)}
+_SCAN_MARKER = re.compile(rb"\xff[^\x00\xd0-\xd7\xff]")
+
+
+def compressed_image_data(source: bytes | str | os.PathLike[str]) -> bytes:
+    """The JPEG's compressed image: every byte from the first SOS marker to the EOI marker.
+
+    This covers all scans (and the tables between the scans of a progressive JPEG) and excludes
+    every metadata segment before the first scan and anything appended after EOI (DJI and phones
+    append preview images there). Raises :class:`GeotagError` for a file that is not a JPEG or
+    ends before its EOI.
+    """
+    data = source if isinstance(source, bytes) else Path(source).read_bytes()
+    name = "<bytes>" if isinstance(source, bytes) else str(source)
+    if not data.startswith(b"\xff\xd8"):
+        raise GeotagError(f"{name}: not a JPEG (no SOI marker)")
+    pos = 2
+    size = len(data)
+    while True:
+        # Header segments: marker, 2-byte big-endian length (which counts itself).
+        while pos < size and data[pos] == 0xFF and pos + 1 < size and data[pos + 1] == 0xFF:
+            pos += 1  # fill bytes
+        if pos + 4 > size or data[pos] != 0xFF:
+            raise GeotagError(f"{name}: JPEG structure broken at byte {pos} before any scan")
+        marker = data[pos + 1]
+        if marker == 0xDA:
+            break
+        if marker in _STANDALONE_MARKERS:
+            pos += 2
+            continue
+        if marker == 0xD9:
+            raise GeotagError(f"{name}: JPEG ends (EOI) before any scan")
+        length = int.from_bytes(data[pos + 2 : pos + 4], "big")
+        pos += 2 + length
+    start = pos
+    # Scan data: 0xFF is followed by 0x00 (stuffing), a restart marker, 0xFF (fill) or a marker
+    # that starts a segment; EOI ends. The regular expression finds the next real marker in C.
+    search = pos + 2 + int.from_bytes(data[pos + 2 : pos + 4], "big")  # past the SOS header
+    while True:
+        found = _SCAN_MARKER.search(data, search)
+        if found is None:
+            raise GeotagError(f"{name}: JPEG truncated: no EOI marker after the image data")
+        ff = found.start()
+        if data[ff + 1] == 0xD9:
+            return data[start : ff + 2]
+        # A segment between scans (DHT, SOS, DRI of a progressive JPEG): skip it by its length.
+        if ff + 4 > size:
+            raise GeotagError(f"{name}: JPEG truncated inside a segment at byte {ff}")
+        length = int.from_bytes(data[ff + 2 : ff + 4], "big")
+        search = ff + 2 + length

@@ -1,0 +1,346 @@
+"""acquisition.exif: capture times, GPS/XMP writing, read back by a second reader (exifread),
+pixel data byte-identical, DJI XMP positions updated, and broken files named."""
+
+from __future__ import annotations
+
+import io
+import shutil
+from pathlib import Path
+
+import exifread
+import numpy as np
+import pyexiv2
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from PIL import Image
+
+from acquisition import exif
+from acquisition.errors import GeotagError
+
+GARFIELD = Path("/work/shared/data/garfield_rgb")
+GARFIELD_FIRST = GARFIELD / "IMG_161122_163234_0000_RGB.JPG"
+
+
+def make_jpeg(
+    path: Path,
+    *,
+    date_time: str | None = "2024:05:17 10:11:12",
+    sub_sec: str | None = "250",
+    zone: str | None = None,
+    xmp: dict[str, str] | None = None,
+    progressive: bool = False,
+    seed: int = 0,
+) -> Path:
+    """A small real JPEG (noise, so the entropy-coded data has 0xFF bytes) with a capture time."""
+    rng = np.random.default_rng(seed)
+    pixels = rng.integers(0, 256, size=(48, 64, 3), dtype=np.uint8)
+    buffer = io.BytesIO()
+    Image.fromarray(pixels).save(buffer, format="JPEG", quality=90, progressive=progressive)
+    image = pyexiv2.ImageData(buffer.getvalue())
+    tags = {"Exif.Image.Make": "TestCam", "Exif.Image.Model": "T1"}
+    if date_time is not None:
+        tags["Exif.Photo.DateTimeOriginal"] = date_time
+    if sub_sec is not None:
+        tags["Exif.Photo.SubSecTimeOriginal"] = sub_sec
+    if zone is not None:
+        tags["Exif.Photo.OffsetTimeOriginal"] = zone
+    image.modify_exif(tags)
+    if xmp:
+        exif._register_namespaces()
+        image.modify_xmp(xmp)
+    path.write_bytes(image.get_bytes())
+    image.close()
+    return path
+
+
+def _exifread(path: Path) -> dict[str, object]:
+    with path.open("rb") as handle:
+        return dict(exifread.process_file(handle, details=False))
+
+
+def _dms(tag: object) -> float:
+    values = [float(v.num) / float(v.den) for v in tag.values]  # type: ignore[attr-defined]
+    return values[0] + values[1] / 60 + values[2] / 3600
+
+
+# ---------------------------------------------------------------------------- capture time
+
+
+def test_capture_time_with_subseconds_and_zone(tmp_path: Path) -> None:
+    path = make_jpeg(
+        tmp_path / "a.jpg", date_time="2024:05:17 10:11:12", sub_sec="25", zone="+02:00"
+    )
+    tags = exif.read_tags(path)
+    # 10:11:12.25 at UTC+2 is 08:11:12.25 UTC; "25" is 25 hundredths (EXIF sub-second digits).
+    assert tags.capture_time_s == pytest.approx(1715933472.25, abs=1e-6)
+    assert tags.capture_time_zone_known
+    assert tags.make == "TestCam" and tags.width_px == 64 and tags.height_px == 48
+
+
+def test_capture_time_without_zone_is_the_wall_clock(tmp_path: Path) -> None:
+    tags = exif.read_tags(make_jpeg(tmp_path / "a.jpg", sub_sec="5"))
+    assert tags.capture_time_s == pytest.approx(1715940672.5)
+    assert not tags.capture_time_zone_known
+
+
+def test_parse_capture_time_forms() -> None:
+    assert exif.parse_capture_time("2024-05-17T10:11:12.125-05:00") == (1715958672.125, True)
+    assert exif.parse_capture_time("0000:00:00 00:00:00") is None
+    assert exif.parse_capture_time("2024:02:30 10:00:00") is None  # no 30 February
+    assert exif.parse_capture_time("garbage") is None
+
+
+def test_no_capture_time(tmp_path: Path) -> None:
+    tags = exif.read_tags(make_jpeg(tmp_path / "a.jpg", date_time=None, sub_sec=None))
+    assert tags.capture_time_s is None
+
+
+def test_garfield_tags_agree_with_exifread() -> None:
+    tags = exif.read_tags(GARFIELD_FIRST)
+    other = _exifread(GARFIELD_FIRST)
+    assert tags.gps_lat_deg == pytest.approx(_dms(other["GPS GPSLatitude"]), abs=1e-12)
+    assert tags.gps_lon_deg == pytest.approx(-_dms(other["GPS GPSLongitude"]), abs=1e-12)
+    alt = other["GPS GPSAltitude"].values[0]  # type: ignore[attr-defined]
+    assert tags.gps_alt_amsl_m == pytest.approx(alt.num / alt.den)
+    assert tags.capture_time_text == str(other["EXIF DateTimeOriginal"])
+    assert (tags.make, tags.model, tags.width_px, tags.height_px) == (
+        "Parrot",
+        "Sequoia",
+        4608,
+        3456,
+    )
+    assert tags.camera_yaw_deg == pytest.approx(-16.7996)
+    assert tags.xy_accuracy_m == pytest.approx(2.301)
+    # 2016-11-22 16:32:34.498032 camera clock; GPS time stamp 16:32:33.853.
+    assert tags.capture_time_s == pytest.approx(1479832354.498032)
+    assert tags.gps_time_utc_s == pytest.approx(1479832353.853)
+
+
+# ---------------------------------------------------------------------------- compressed data
+
+
+def test_compressed_image_data_is_sos_to_eoi(tmp_path: Path) -> None:
+    data = make_jpeg(tmp_path / "a.jpg").read_bytes()
+    scan = exif.compressed_image_data(data)
+    assert scan.startswith(b"\xff\xda") and scan.endswith(b"\xff\xd9")
+    assert data.index(b"\xff\xda") == data.index(scan)
+    # Bytes appended after EOI (preview images on DJI files) are not image data.
+    assert exif.compressed_image_data(data + b"\xff\xd8trailer\xff\xd9") == scan
+
+
+def test_compressed_image_data_progressive_covers_all_scans(tmp_path: Path) -> None:
+    data = make_jpeg(tmp_path / "p.jpg", progressive=True).read_bytes()
+    scan = exif.compressed_image_data(data)
+    assert scan.count(b"\xff\xda") > 1 and data.endswith(scan)
+
+
+def test_compressed_image_data_refuses_broken_files(tmp_path: Path) -> None:
+    data = make_jpeg(tmp_path / "a.jpg").read_bytes()
+    with pytest.raises(GeotagError, match="no EOI"):
+        exif.compressed_image_data(data[:-200])
+    with pytest.raises(GeotagError, match="not a JPEG"):
+        exif.compressed_image_data(b"GIF89a")
+
+
+# ---------------------------------------------------------------------------- writing
+
+
+def _tag(**changes: float | None) -> exif.GeoTag:
+    values: dict[str, float | None] = {
+        "lat_deg": -33.8567844,
+        "lon_deg": -151.2152967,
+        "alt_amsl_m": -12.345,
+        "time_utc_s": 1715933472.25,
+        "yaw_deg": 271.5,
+        "pitch_deg": 2.25,
+        "roll_deg": -1.5,
+        "xy_accuracy_m": 0.8,
+        "z_accuracy_m": 1.6,
+    }
+    values.update(changes)
+    return exif.GeoTag(**values)  # type: ignore[arg-type]
+
+
+def test_written_tags_read_back_by_exifread_and_pixels_identical(tmp_path: Path) -> None:
+    src = make_jpeg(tmp_path / "src.jpg")
+    dst = tmp_path / "out" / "dst.jpg"
+    tag = _tag()
+    exif.write_geotag(src, dst, tag)
+    other = _exifread(dst)
+    assert str(other["GPS GPSLatitudeRef"]) == "S" and str(other["GPS GPSLongitudeRef"]) == "W"
+    # Seconds are written to 1e-5 s: 0.3 mm on the ground.
+    assert -_dms(other["GPS GPSLatitude"]) == pytest.approx(tag.lat_deg, abs=1e-5 / 3600)
+    assert -_dms(other["GPS GPSLongitude"]) == pytest.approx(tag.lon_deg, abs=1e-5 / 3600)
+    assert other["GPS GPSAltitudeRef"].values == [1]  # type: ignore[attr-defined]
+    alt = other["GPS GPSAltitude"].values[0]  # type: ignore[attr-defined]
+    assert alt.num / alt.den == pytest.approx(12.345)
+    assert str(other["GPS GPSDate"]) == "2024:05:17"
+    hms = [v.num / v.den for v in other["GPS GPSTimeStamp"].values]  # type: ignore[attr-defined]
+    assert hms == pytest.approx([8, 11, 12.25])
+    direction = other["GPS GPSImgDirection"].values[0]  # type: ignore[attr-defined]
+    assert direction.num / direction.den == pytest.approx(271.5)
+    assert str(other["GPS GPSImgDirectionRef"]) == "T"
+    assert str(other["GPS GPSMapDatum"]) == "WGS-84"
+    # XMP in the Pix4D namespace.
+    raw = dst.read_bytes()
+    assert b"http://pix4d.com/camera/1.0/" in raw
+    back = exif.read_tags(dst)
+    assert (back.camera_yaw_deg, back.camera_pitch_deg, back.camera_roll_deg) == (271.5, 2.25, -1.5)
+    assert (back.xy_accuracy_m, back.z_accuracy_m) == (0.8, 1.6)
+    assert back.gps_alt_amsl_m == pytest.approx(-12.345)
+    # Pixel data: the compressed bytes and the decoded pixels are identical.
+    assert exif.compressed_image_data(dst) == exif.compressed_image_data(src)
+    assert np.array_equal(np.asarray(Image.open(dst)), np.asarray(Image.open(src)))
+    # The source was not touched, and no XMP DJI tags were invented.
+    assert exif.read_tags(src).gps_lat_deg is None
+    assert b"drone-dji" not in raw
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    lat=st.floats(-89.999, 89.999),
+    lon=st.floats(-179.999, 179.999),
+    alt=st.floats(-400.0, 9000.0),
+)
+def test_position_round_trip_property(
+    tmp_path_factory: pytest.TempPathFactory, lat: float, lon: float, alt: float
+) -> None:
+    folder = tmp_path_factory.mktemp("rt")
+    src = make_jpeg(folder / "a.jpg")
+    data = exif.geotag_bytes(
+        src.read_bytes(), exif.GeoTag(lat_deg=lat, lon_deg=lon, alt_amsl_m=alt)
+    )
+    (folder / "b.jpg").write_bytes(data)
+    back = exif.read_tags(folder / "b.jpg")
+    assert back.gps_lat_deg == pytest.approx(lat, abs=0.51e-5 / 3600)
+    assert back.gps_lon_deg == pytest.approx(lon, abs=0.51e-5 / 3600)
+    assert back.gps_alt_amsl_m == pytest.approx(alt, abs=0.0005)
+
+
+def test_dji_xmp_positions_are_updated(tmp_path: Path) -> None:
+    xmp = {
+        "Xmp.drone-dji.GpsLatitude": "+47.000000",
+        "Xmp.drone-dji.GpsLongtitude": "+8.000000",  # the misspelling of older DJI firmware
+        "Xmp.drone-dji.AbsoluteAltitude": "+500.00",
+        "Xmp.drone-dji.RelativeAltitude": "+80.00",
+        "Xmp.drone-dji.GimbalPitchDegree": "-90.0",
+    }
+    src = make_jpeg(tmp_path / "dji.jpg", xmp=xmp)
+    before = exif.read_tags(src)
+    assert before.has_dji_position and before.dji_lon_deg == 8.0
+    exif.write_geotag(src, tmp_path / "out.jpg", _tag(alt_amsl_m=412.5, alt_rel_home_m=75.25))
+    after = exif.read_tags(tmp_path / "out.jpg")
+    assert after.dji_lat_deg == pytest.approx(-33.8567844)
+    assert after.dji_lon_deg == pytest.approx(-151.2152967)
+    assert after.dji_alt_amsl_m == pytest.approx(412.5)
+    assert after.dji_alt_rel_home_m == pytest.approx(75.25)
+    raw = pyexiv2.Image(str(tmp_path / "out.jpg"))
+    try:
+        kept = raw.read_xmp()
+    finally:
+        raw.close()
+    assert kept["Xmp.drone-dji.GimbalPitchDegree"] == "-90.0"  # what we do not know stays
+    assert "Xmp.drone-dji.GpsLongitude" not in kept  # no second longitude spelling invented
+
+
+def test_dji_relative_altitude_removed_when_unknown(tmp_path: Path) -> None:
+    xmp = {"Xmp.drone-dji.GpsLatitude": "+47.0", "Xmp.drone-dji.RelativeAltitude": "+80.00"}
+    src = make_jpeg(tmp_path / "dji.jpg", xmp=xmp)
+    exif.write_geotag(src, tmp_path / "out.jpg", _tag())
+    assert exif.read_tags(tmp_path / "out.jpg").dji_alt_rel_home_m is None
+
+
+def test_write_in_place_and_refuse_overwrite(tmp_path: Path) -> None:
+    src = make_jpeg(tmp_path / "a.jpg")
+    scan = exif.compressed_image_data(src)
+    exif.write_geotag(src, src, _tag())
+    assert exif.read_tags(src).gps_lat_deg == pytest.approx(-33.8567844)
+    assert exif.compressed_image_data(src) == scan
+    other = make_jpeg(tmp_path / "b.jpg")
+    from planner.errors import OutputExistsError
+
+    with pytest.raises(OutputExistsError, match="--overwrite"):
+        exif.write_geotag(other, src, _tag())
+
+
+def test_strip_gps_on_garfield(tmp_path: Path) -> None:
+    copy = tmp_path / GARFIELD_FIRST.name
+    shutil.copy(GARFIELD_FIRST, copy)
+    exif.strip_gps(copy, tmp_path / "s.jpg", attitude=True)
+    stripped = exif.read_tags(tmp_path / "s.jpg")
+    assert (
+        stripped.gps_lat_deg is None
+        and stripped.gps_alt_amsl_m is None
+        and stripped.gps_time_utc_s is None
+    )
+    assert stripped.camera_yaw_deg is None and stripped.xy_accuracy_m is None
+    assert stripped.capture_time_s == exif.read_tags(copy).capture_time_s
+    assert not any(
+        k.startswith("GPS ") and k != "GPS GPSInfo" for k in _exifread(tmp_path / "s.jpg")
+    )
+    assert exif.compressed_image_data(tmp_path / "s.jpg") == exif.compressed_image_data(
+        GARFIELD_FIRST
+    )
+
+
+def test_geotag_values_are_validated() -> None:
+    with pytest.raises(GeotagError, match="latitude 91"):
+        exif.GeoTag(lat_deg=91.0, lon_deg=0.0)
+    with pytest.raises(GeotagError, match="alt_amsl_m is nan"):
+        exif.GeoTag(lat_deg=0.0, lon_deg=0.0, alt_amsl_m=float("nan"))
+    with pytest.raises(GeotagError, match="accuracies"):
+        exif.GeoTag(lat_deg=0.0, lon_deg=0.0, xy_accuracy_m=-1.0)
+
+
+def test_unreadable_files_are_named(tmp_path: Path) -> None:
+    empty = tmp_path / "empty.jpg"
+    empty.write_bytes(b"")
+    with pytest.raises(GeotagError, match=r"empty\.jpg: not a JPEG"):
+        exif.read_tags(empty)
+    text = tmp_path / "notes.jpg"
+    text.write_text("not an image")
+    with pytest.raises(GeotagError, match=r"notes\.jpg"):
+        exif.read_tags(text)
+    truncated = tmp_path / "cut.jpg"
+    truncated.write_bytes(make_jpeg(tmp_path / "whole.jpg").read_bytes()[:300])
+    with pytest.raises(GeotagError, match=r"cut\.jpg"):
+        exif.write_geotag(truncated, tmp_path / "x.jpg", _tag())
+
+
+def test_stale_gps_and_attitude_of_the_old_fix_are_removed(tmp_path: Path) -> None:
+    copy = tmp_path / GARFIELD_FIRST.name
+    shutil.copy(GARFIELD_FIRST, copy)
+    exif.write_geotag(copy, tmp_path / "out.jpg", exif.GeoTag(lat_deg=1.5, lon_deg=-2.25))
+    other = _exifread(tmp_path / "out.jpg")
+    gps = {k for k in other if k.startswith("GPS ")}
+    assert gps == {
+        "GPS GPSVersionID",
+        "GPS GPSLatitudeRef",
+        "GPS GPSLatitude",
+        "GPS GPSLongitudeRef",
+        "GPS GPSLongitude",
+        "GPS GPSMapDatum",
+    }  # no old speed, status, altitude or time
+    back = exif.read_tags(tmp_path / "out.jpg")
+    assert (back.gps_lat_deg, back.gps_lon_deg) == (1.5, -2.25)
+    assert back.camera_yaw_deg is None and back.xy_accuracy_m is None  # no attitude of another pose
+    assert back.capture_time_s == exif.read_tags(copy).capture_time_s
+
+
+def test_xmp_exif_gps_copies_are_updated(tmp_path: Path) -> None:
+    xmp = {"Xmp.exif.GPSLatitude": "10,0.0N", "Xmp.exif.GPSLongitude": "20,0.0E"}
+    src = make_jpeg(tmp_path / "x.jpg", xmp=xmp)
+    exif.write_geotag(src, tmp_path / "out.jpg", _tag())
+    image = pyexiv2.Image(str(tmp_path / "out.jpg"))
+    try:
+        written = image.read_xmp()
+    finally:
+        image.close()
+    lat = written["Xmp.exif.GPSLatitude"]
+    assert lat.endswith("S") and lat.startswith("33,")
+    assert float(lat[3:-1]) / 60 + 33 == pytest.approx(33.8567844, abs=1e-9)
+    assert written["Xmp.exif.GPSLongitude"].startswith("151,") and written[
+        "Xmp.exif.GPSLongitude"
+    ].endswith("W")
+    assert "Xmp.exif.GPSAltitude" not in written  # not carried before: not invented
