@@ -243,9 +243,7 @@ def _deg_to_dms_text(value_deg: float) -> str:
     return f"{degrees}/1 {minutes}/1 {seconds_units}/100000"
 
 
-_DATE_RE = re.compile(
-    r"^\s*(\d{4})[:-](\d{2})[:-](\d{2})[ T](\d{2}):(\d{2}):(\d{2})(\.\d+)?\s*(.*)$"
-)
+_DATE_RE = re.compile(r"^\s*(\d{4})[:-](\d{2})[:-](\d{2})[ T](\d{2}):(\d{2}):(\d{2})(\.\d+)?\s*(.*)$")
 _ZONE_RE = re.compile(r"^([+-])(\d{2}):?(\d{2})$")
 
 
@@ -330,9 +328,7 @@ def _open(data: bytes, path: str | os.PathLike[str]) -> pyexiv2.ImageData:
     try:
         return pyexiv2.ImageData(data)
     except (RuntimeError, ValueError, OSError) as error:
-        raise GeotagError(
-            f"{path}: not a readable image ({error}); remove it or replace it"
-        ) from error
+        raise GeotagError(f"{path}: not a readable image ({error}); remove it or replace it") from error
 
 
 def _read_maps(
@@ -361,9 +357,7 @@ def read_tags(path: str | os.PathLike[str]) -> ImageTags:
         # From the path, exiv2 reads the metadata segments only (5x faster than the whole file).
         image = pyexiv2.Image(os.fspath(path))
     except (RuntimeError, ValueError, OSError) as error:
-        raise GeotagError(
-            f"{path}: not a readable image ({error}); remove or replace it"
-        ) from error
+        raise GeotagError(f"{path}: not a readable image ({error}); remove or replace it") from error
     try:
         exif, xmp = _read_maps(image, path)
         width = image.get_pixel_width() or None
@@ -412,12 +406,8 @@ def tags_from_maps(
 
     lat = lon = alt = None
     if get("Exif.GPSInfo.GPSLatitude") and get("Exif.GPSInfo.GPSLongitude"):
-        lat = _dms_to_deg(
-            get("Exif.GPSInfo.GPSLatitude") or "", get("Exif.GPSInfo.GPSLatitudeRef"), "S"
-        )
-        lon = _dms_to_deg(
-            get("Exif.GPSInfo.GPSLongitude") or "", get("Exif.GPSInfo.GPSLongitudeRef"), "W"
-        )
+        lat = _dms_to_deg(get("Exif.GPSInfo.GPSLatitude") or "", get("Exif.GPSInfo.GPSLatitudeRef"), "S")
+        lon = _dms_to_deg(get("Exif.GPSInfo.GPSLongitude") or "", get("Exif.GPSInfo.GPSLongitudeRef"), "W")
     alt_text = get("Exif.GPSInfo.GPSAltitude")
     if alt_text:
         alt = _rational(alt_text)
@@ -449,9 +439,7 @@ def tags_from_maps(
         gps_lat_deg=lat,
         gps_lon_deg=lon,
         gps_alt_amsl_m=alt,
-        gps_time_utc_s=_gps_time(
-            get("Exif.GPSInfo.GPSDateStamp"), get("Exif.GPSInfo.GPSTimeStamp")
-        ),
+        gps_time_utc_s=_gps_time(get("Exif.GPSInfo.GPSDateStamp"), get("Exif.GPSInfo.GPSTimeStamp")),
         camera_yaw_deg=_float(get("Xmp.Camera.Yaw")),
         camera_pitch_deg=_float(get("Xmp.Camera.Pitch")),
         camera_roll_deg=_float(get("Xmp.Camera.Roll")),
@@ -519,9 +507,7 @@ def _xmp_values(tag: GeoTag, existing_xmp: dict[str, Any]) -> dict[str, str | No
         "Xmp.drone-dji.GpsLatitude": f"{tag.lat_deg:+.9f}",
         "Xmp.drone-dji.GpsLongitude": f"{tag.lon_deg:+.9f}",
         "Xmp.drone-dji.GpsLongtitude": f"{tag.lon_deg:+.9f}",
-        "Xmp.drone-dji.AbsoluteAltitude": None
-        if tag.alt_amsl_m is None
-        else f"{tag.alt_amsl_m:+.3f}",
+        "Xmp.drone-dji.AbsoluteAltitude": None if tag.alt_amsl_m is None else f"{tag.alt_amsl_m:+.3f}",
         "Xmp.drone-dji.RelativeAltitude": None
         if tag.alt_rel_home_m is None
         else f"{tag.alt_rel_home_m:+.3f}",
@@ -530,12 +516,8 @@ def _xmp_values(tag: GeoTag, existing_xmp: dict[str, Any]) -> dict[str, str | No
     xmp_exif = {
         "Xmp.exif.GPSLatitude": _xmp_coordinate(tag.lat_deg, "N", "S"),
         "Xmp.exif.GPSLongitude": _xmp_coordinate(tag.lon_deg, "E", "W"),
-        "Xmp.exif.GPSAltitude": None
-        if tag.alt_amsl_m is None
-        else _to_rational_text(tag.alt_amsl_m, 1000),
-        "Xmp.exif.GPSAltitudeRef": None
-        if tag.alt_amsl_m is None
-        else ("0" if tag.alt_amsl_m >= 0 else "1"),
+        "Xmp.exif.GPSAltitude": None if tag.alt_amsl_m is None else _to_rational_text(tag.alt_amsl_m, 1000),
+        "Xmp.exif.GPSAltitudeRef": None if tag.alt_amsl_m is None else ("0" if tag.alt_amsl_m >= 0 else "1"),
     }
     for key, text in {**dji, **xmp_exif}.items():
         # Only update what the file carries: adding DJI tags to another camera's file would lie
@@ -599,9 +581,7 @@ def write_geotag(
     data = Path(src).read_bytes()
     tagged = geotag_bytes(data, tag, name=str(src))
     if check_image_data and compressed_image_data(tagged) != compressed_image_data(data):
-        raise GeotagError(
-            f"{src}: writing the tags would change the image data; file left as it was"
-        )
+        raise GeotagError(f"{src}: writing the tags would change the image data; file left as it was")
     same = os.path.abspath(src) == os.path.abspath(dst)
     if atomic or same:
         return atomic_write_bytes(dst, tagged, overwrite=overwrite or same)

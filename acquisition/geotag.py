@@ -141,9 +141,7 @@ class Matching:
 
     def predicted_frame_time(self, event_time_s: ArrayLike) -> F64:
         e = np.asarray(event_time_s, dtype=float)
-        return np.asarray(
-            e + self.offset_s + self.drift_ppm * 1e-6 * (e - self.reference_time_s), float
-        )
+        return np.asarray(e + self.offset_s + self.drift_ppm * 1e-6 * (e - self.reference_time_s), float)
 
 
 def _median_interval_s(times: F64) -> float:
@@ -227,9 +225,7 @@ def _align(
         i, j, r = node_i[k], node_j[k], node_r[k]
         while restart_frontier < i - max_skip:
             if restart_frontier in first_of_frame:
-                for q in range(
-                    first_of_frame[restart_frontier], last_of_frame[restart_frontier] + 1
-                ):
+                for q in range(first_of_frame[restart_frontier], last_of_frame[restart_frontier] + 1):
                     value = cost[q] - gap_cost * (node_i[q] + node_j[q])
                     if value < restart_best:
                         restart_best, restart_node = value, q
@@ -324,11 +320,7 @@ def match_frames_to_events(
     e_order = np.argsort(e_in, kind="stable")
     f = f_in[f_order]
     e = e_in[e_order]
-    tol = (
-        tolerance_s
-        if tolerance_s is not None
-        else float(np.clip(0.35 * _median_interval_s(e), 0.05, 2.0))
-    )
+    tol = tolerance_s if tolerance_s is not None else float(np.clip(0.35 * _median_interval_s(e), 0.05, 2.0))
     if not tol > 0:
         raise GeotagError(f"matching tolerance {tol} s must be > 0")
     if tolerance_s is None:
@@ -617,9 +609,7 @@ class PoseInterpolation:
 
 
 def _iso(t: float) -> str:
-    return (
-        datetime.fromtimestamp(t, tz=UTC).isoformat(timespec="milliseconds").replace("+00:00", "Z")
-    )
+    return datetime.fromtimestamp(t, tz=UTC).isoformat(timespec="milliseconds").replace("+00:00", "Z")
 
 
 #: How far beyond the ends of a track a time may be and still be placed (extrapolated), s.
@@ -704,9 +694,7 @@ def interpolate_poses(
     """
     t = np.atleast_1d(np.asarray(times_utc_s, float))
     if len(positions) == 0:
-        return PoseInterpolation(
-            poses=(None,) * t.size, reasons=("the log has no positions",) * t.size
-        )
+        return PoseInterpolation(poses=(None,) * t.size, reasons=("the log has no positions",) * t.size)
     order = np.argsort(positions.time_utc_s, kind="stable")
     pt = positions.time_utc_s[order]
     lat = positions.lat_deg[order]
@@ -750,9 +738,7 @@ def interpolate_poses(
             return None
         a_order = np.argsort(track.time_utc_s, kind="stable")
         at = track.time_utc_s[a_order]
-        q = quat_from_euler_deg(
-            track.yaw_deg[a_order], track.pitch_deg[a_order], track.roll_deg[a_order]
-        )
+        q = quat_from_euler_deg(track.yaw_deg[a_order], track.pitch_deg[a_order], track.roll_deg[a_order])
         a_lo, a_hi, a_w, a_gap, a_reasons = _bracket(at, t, max_gap_s)
         yaw_a, pitch_a, roll_a = euler_deg_from_quat(slerp(q[a_lo], q[a_hi], a_w))
         return yaw_a, pitch_a, roll_a, a_gap, a_reasons
@@ -957,9 +943,7 @@ class GeotagResult:
     def extra_frames(self) -> tuple[str, ...]:
         """Frames without a camera event (whether or not they could be placed by time)."""
         return tuple(
-            f.name
-            for f in self.frames
-            if f.status in (FrameStatus.EXTRA, FrameStatus.EXTRA_BY_TIME)
+            f.name for f in self.frames if f.status in (FrameStatus.EXTRA, FrameStatus.EXTRA_BY_TIME)
         )
 
     @property
@@ -976,8 +960,7 @@ class GeotagResult:
                 "frames": len(self.frames),
                 "tagged": len(self.tagged),
                 "untagged": [
-                    {"name": f.name, "status": str(f.status), "message": f.message}
-                    for f in self.untagged
+                    {"name": f.name, "status": str(f.status), "message": f.message} for f in self.untagged
                 ],
                 "camera_events": self.n_events,
                 "matched": sum(1 for f in self.frames if f.status is FrameStatus.MATCHED),
@@ -1021,9 +1004,7 @@ def _offset_from_exif_gps(frames: Sequence[_Frame]) -> float | None:
     diffs = [
         fr.tags.capture_time_s - fr.tags.gps_time_utc_s
         for fr in frames
-        if fr.tags is not None
-        and fr.tags.capture_time_s is not None
-        and fr.tags.gps_time_utc_s is not None
+        if fr.tags is not None and fr.tags.capture_time_s is not None and fr.tags.gps_time_utc_s is not None
     ]
     return float(np.median(diffs)) if diffs else None
 
@@ -1092,9 +1073,7 @@ def geotag_images(
     if not dry_run:
         check_output_dir(out_dir, overwrite=overwrite)
         if not in_place and Path(out_dir).resolve() == Path(image_dir).resolve():
-            raise InputError(
-                "the output folder is the image folder; choose another -o or use --in-place"
-            )
+            raise InputError("the output folder is the image folder; choose another -o or use --in-place")
     total = 2 * len(paths)
 
     frames: list[_Frame] = []
@@ -1160,9 +1139,7 @@ def geotag_images(
                 offset, offset_source = from_gps, OffsetSource.EXIF_GPS
             else:
                 offset, offset_source = 0.0, OffsetSource.ASSUMED_ZERO
-                if timed and not all(
-                    fr.tags is not None and fr.tags.capture_time_zone_known for fr in timed
-                ):
+                if timed and not all(fr.tags is not None and fr.tags.capture_time_zone_known for fr in timed):
                     warnings.append(
                         "no camera events and no --offset-s: the camera clock is assumed to be "
                         "UTC; a wrong clock or time zone places every frame wrongly"
@@ -1226,11 +1203,7 @@ def geotag_images(
             elif event_pose is not None:
                 pose, source = event_pose, "event"
             else:
-                reason = (
-                    interpolation.reasons[k]
-                    if interpolation is not None
-                    else "the log has no positions"
-                )
+                reason = interpolation.reasons[k] if interpolation is not None else "the log has no positions"
             if pose is None:
                 status = FrameStatus.NO_POSITION
         else:
@@ -1245,18 +1218,13 @@ def geotag_images(
             if pose is None:
                 status = FrameStatus.EXTRA if extra else FrameStatus.NO_POSITION
                 if extra:
-                    reason = (
-                        f"no camera event matches this frame; {reason}"
-                        if reason
-                        else "no camera event"
-                    )
+                    reason = f"no camera event matches this frame; {reason}" if reason else "no camera event"
         if pose is not None:
             timing = 0.0 if status is FrameStatus.MATCHED else timing_scatter
             xy_acc, z_acc = _accuracy(options, pose.speed_m_s, timing)
             if status is FrameStatus.EXTRA_BY_TIME:
                 reason = (
-                    "no camera event matches this frame: placed at its capture time corrected "
-                    "by the offset"
+                    "no camera event matches this frame: placed at its capture time corrected by the offset"
                 )
             results[fr.path] = FrameResult(
                 **base,
@@ -1290,8 +1258,7 @@ def geotag_images(
                 name=fr.path.name,
                 source_path=str(fr.path),
                 status=FrameStatus.NO_CAPTURE_TIME,
-                message="no capture time (DateTimeOriginal) in the file: it cannot be matched "
-                "or placed",
+                message="no capture time (DateTimeOriginal) in the file: it cannot be matched or placed",
             )
         elif name_count[fr.path.name.lower()] > 1:
             old = results[fr.path]

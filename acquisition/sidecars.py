@@ -48,13 +48,10 @@ class CameraPosition:
     def __post_init__(self) -> None:
         if not self.name or any(c.isspace() for c in self.name) or "," in self.name:
             raise GeotagError(
-                f"image name {self.name!r} cannot go in geo.txt or a CSV (no spaces or "
-                f"commas); rename it"
+                f"image name {self.name!r} cannot go in geo.txt or a CSV (no spaces or commas); rename it"
             )
         if not (-90.0 <= self.lat_deg <= 90.0 and -180.0 <= self.lon_deg <= 180.0):
-            raise GeotagError(
-                f"{self.name}: position lat {self.lat_deg}, lon {self.lon_deg} is not WGS84"
-            )
+            raise GeotagError(f"{self.name}: position lat {self.lat_deg}, lon {self.lon_deg} is not WGS84")
 
     @property
     def has_attitude(self) -> bool:
@@ -151,9 +148,7 @@ def _parse(fields: list[str], lat_first: bool, where: str) -> CameraPosition:
 
 def read_odm_geo_txt(path: str | os.PathLike[str]) -> tuple[str, list[CameraPosition]]:
     """(CRS line, rows) of an OpenDroneMap geo.txt in lon/lat (EPSG:4326)."""
-    lines = [
-        ln for ln in Path(path).read_text().splitlines() if ln.strip() and not ln.startswith("#")
-    ]
+    lines = [ln for ln in Path(path).read_text().splitlines() if ln.strip() and not ln.startswith("#")]
     if not lines:
         raise GeotagError(f"{path} is empty; a geo.txt starts with its CRS line")
     crs = lines[0].strip()
@@ -167,6 +162,5 @@ def read_pix4d_csv(path: str | os.PathLike[str]) -> list[CameraPosition]:
     """Rows of a Pix4D image geolocation CSV (no header; lat before lon)."""
     lines = [ln for ln in Path(path).read_text().splitlines() if ln.strip()]
     return [
-        _parse([v.strip() for v in ln.split(",")], True, f"{path} line {k + 1}")
-        for k, ln in enumerate(lines)
+        _parse([v.strip() for v in ln.split(",")], True, f"{path} line {k + 1}") for k, ln in enumerate(lines)
     ]

@@ -15,7 +15,6 @@ import math
 import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
@@ -107,7 +106,11 @@ def main() -> None:
         out_root = args.out or folder / "out"
         cases = [
             ("large concave 100 km2, 20 holes, 3 cm", folder / "bench.toml", out_root / "large"),
-            ("oblique example (quarry-block)", REPO / "missions" / "quarry-block.toml", out_root / "quarry"),
+            (
+                "oblique example (quarry-block)",
+                REPO / "missions" / "quarry-block.toml",
+                out_root / "quarry",
+            ),
         ]
         for label, spec, out in cases:
             r = run_case(spec, out)

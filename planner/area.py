@@ -211,9 +211,11 @@ def build_area(
     area = _polygonal(area)
     zones: tuple[Polygon, ...] = ()
     if excluded is not None:
-        zones = tuple(_polygonal(shapely.make_valid(excluded)).geoms) if not isinstance(
-            excluded, Polygon
-        ) else (excluded,)
+        zones = (
+            tuple(_polygonal(shapely.make_valid(excluded)).geoms)
+            if not isinstance(excluded, Polygon)
+            else (excluded,)
+        )
     return area, zones
 
 

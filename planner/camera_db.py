@@ -113,9 +113,7 @@ def _reject_unknown(data: Mapping[str, object], valid: tuple[str, ...], where: s
     for key in unknown:
         close = difflib.get_close_matches(key, valid, n=1)
         hints.append(f"{key!r} (did you mean {close[0]!r}?)" if close else repr(key))
-    raise CameraError(
-        f"{where}: unknown camera key(s) {', '.join(hints)}; valid keys: {', '.join(valid)}"
-    )
+    raise CameraError(f"{where}: unknown camera key(s) {', '.join(hints)}; valid keys: {', '.join(valid)}")
 
 
 def check_published_pitch(camera: Camera, pixel_pitch_um: float, *, where: str) -> None:
@@ -125,9 +123,7 @@ def check_published_pitch(camera: Camera, pixel_pitch_um: float, *, where: str) 
     pitch to two or three digits, and quote the nominal format (17.3 x 13.0 mm for 4/3).
     """
     if not (0.0 < pixel_pitch_um < 100.0):
-        raise CameraError(
-            f"{where}: pixel_pitch_um = {pixel_pitch_um!r} is not a pixel pitch in micrometres"
-        )
+        raise CameraError(f"{where}: pixel_pitch_um = {pixel_pitch_um!r} is not a pixel pitch in micrometres")
     for axis, pitch_mm in (("x", camera.pixel_pitch_x_mm), ("y", camera.pixel_pitch_y_mm)):
         pitch_um = pitch_mm * 1000.0
         if abs(pitch_um - pixel_pitch_um) > _PITCH_TOLERANCE_RATIO * pixel_pitch_um:
@@ -173,9 +169,7 @@ def _camera_from_entry(entry: Mapping[str, object], index: int) -> Camera:
     values = {key: _check_value(key, value, where) for key, value in entry.items()}
     camera_id = str(values["id"])
     if not _ID_PATTERN.match(camera_id):
-        raise CameraError(
-            f"{where}: id {camera_id!r} must be lowercase letters and digits joined by hyphens"
-        )
+        raise CameraError(f"{where}: id {camera_id!r} must be lowercase letters and digits joined by hyphens")
     published = values.pop("pixel_pitch_um", None)
     try:
         camera = Camera(**values)  # type: ignore[arg-type]
@@ -199,9 +193,7 @@ def parse_cameras(text: str, *, source: str = _DATA_FILE) -> dict[str, Camera]:
         raise CameraError(f"{source}: not valid TOML: {error}") from error
     extra = sorted(set(document) - {"camera"})
     if extra:
-        raise CameraError(
-            f"{source}: unknown top-level key(s) {', '.join(extra)}; expected [[camera]]"
-        )
+        raise CameraError(f"{source}: unknown top-level key(s) {', '.join(extra)}; expected [[camera]]")
     entries = document.get("camera", [])
     if not isinstance(entries, list) or not all(isinstance(e, dict) for e in entries):
         raise CameraError(f"{source}: 'camera' must be an array of tables ([[camera]])")
@@ -318,9 +310,7 @@ def match_exif(
     for camera in _load_cameras().values():
         if camera.exif_model is None or _norm(camera.exif_model) != wanted_model:
             continue
-        if wanted_make is not None and (
-            camera.exif_make is None or _norm(camera.exif_make) != wanted_make
-        ):
+        if wanted_make is not None and (camera.exif_make is None or _norm(camera.exif_make) != wanted_make):
             continue
         if focal_length_mm is not None and (
             abs(focal_length_mm - camera.focal_length_mm)
@@ -431,8 +421,7 @@ class CameraFigures:
                 "scale_number": self.scale_number,
             },
             "height_for_gsd": [
-                {"gsd_cm": gsd_cm, "alt_agl_m": alt_agl_m}
-                for gsd_cm, alt_agl_m in self.heights_for_gsd
+                {"gsd_cm": gsd_cm, "alt_agl_m": alt_agl_m} for gsd_cm, alt_agl_m in self.heights_for_gsd
             ],
         }
 

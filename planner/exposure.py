@@ -72,7 +72,10 @@ def frame_rectangle(
     v = np.round(v, 9)
     if _is_axis_aligned_rectangle(u, v):
         return FrameRectangle(
-            u_min_m=float(u.min()), u_max_m=float(u.max()), v_min_m=float(v.min()), v_max_m=float(v.max())
+            u_min_m=float(u.min()),
+            u_max_m=float(u.max()),
+            v_min_m=float(v.min()),
+            v_max_m=float(v.max()),
         )
     return _inscribed_rectangle(u, v)
 

@@ -58,7 +58,11 @@ def footprint_corners(
     y = np.atleast_1d(np.asarray(y_m, float))
     h = np.atleast_1d(np.asarray(height_m, float))
     x, y, h, up, tilt = np.broadcast_arrays(
-        x, y, h, np.atleast_1d(np.asarray(up_bearing_deg, float)), np.atleast_1d(np.asarray(tilt_deg, float))
+        x,
+        y,
+        h,
+        np.atleast_1d(np.asarray(up_bearing_deg, float)),
+        np.atleast_1d(np.asarray(tilt_deg, float)),
     )
     rays_cam = np.column_stack(
         [
@@ -89,7 +93,9 @@ def principal_point_offset_m(height_m: float, tilt_deg: float) -> float:
     return height_m * math.tan(math.radians(tilt_deg))
 
 
-def tilted_gsd_cm(camera: Camera, height_m: float, tilt_deg: float, row_offset_mm: float = 0.0) -> tuple[float, float]:
+def tilted_gsd_cm(
+    camera: Camera, height_m: float, tilt_deg: float, row_offset_mm: float = 0.0
+) -> tuple[float, float]:
     """GSD (radial, lateral) in cm of a tilted frame at an image row.
 
     ``row_offset_mm`` is the row's distance from the image centre on the sensor, positive

@@ -83,9 +83,7 @@ class LocalFrame:
 
     def geometry_to_lonlat(self, geom: BaseGeometry) -> BaseGeometry:
         """A shapely geometry in this frame, back to lon/lat."""
-        return shapely.transform(
-            geom, lambda c: np.column_stack(self.to_lonlat(c[:, 0], c[:, 1]))
-        )
+        return shapely.transform(geom, lambda c: np.column_stack(self.to_lonlat(c[:, 0], c[:, 1])))
 
 
 def geodesic_distance_m(lat1_deg: float, lon1_deg: float, lat2_deg: float, lon2_deg: float) -> float:

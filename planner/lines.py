@@ -122,9 +122,7 @@ def layout_pass(
         piece = area_uv.intersection(box(u_lo, band_lo, u_hi, band_hi))
         intervals = _u_intervals(piece)
         segments.extend(
-            _segments_for_line(
-                i, v_line, intervals, prepared_blocked, rect, trigger_distance_m, (u_lo, u_hi)
-            )
+            _segments_for_line(i, v_line, intervals, prepared_blocked, rect, trigger_distance_m, (u_lo, u_hi))
         )
 
     segments = _drop_slivers(segments, area_uv, rect)

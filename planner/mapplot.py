@@ -158,8 +158,7 @@ def render_map_figure(
     """The map of ``plan`` as a ``Figure`` on an Agg canvas (see :func:`render_map_png`)."""
     if max_footprints < 0 or max_stations < 0:
         raise InputError(
-            f"max_footprints = {max_footprints}, max_stations = {max_stations}: "
-            f"both must be 0 or more"
+            f"max_footprints = {max_footprints}, max_stations = {max_stations}: both must be 0 or more"
         )
     ox, oy = plan.home_xy_m
     st = plan.stations
@@ -193,9 +192,7 @@ def render_map_figure(
     fig_w_in, fig_h_in = left_in + map_w_in + right_in, bottom_in + map_h_in + top_in
     fig = Figure(figsize=(fig_w_in, fig_h_in), dpi=100)
     FigureCanvasAgg(fig)
-    ax = fig.add_axes(
-        (left_in / fig_w_in, bottom_in / fig_h_in, map_w_in / fig_w_in, map_h_in / fig_h_in)
-    )
+    ax = fig.add_axes((left_in / fig_w_in, bottom_in / fig_h_in, map_w_in / fig_w_in, map_h_in / fig_h_in))
     # widen the short side so that the data fill the axes box at equal scale
     box_ratio = map_h_in / map_w_in
     if (y1 - y0) / (x1 - x0) > box_ratio:
@@ -210,9 +207,7 @@ def render_map_figure(
 
     area_path = _polygon_path(plan.area_xy, ox, oy)
     if area_path is not None:
-        ax.add_patch(
-            PathPatch(area_path, facecolor=_AREA_FACE, edgecolor=_AREA_EDGE, lw=1.2, zorder=1)
-        )
+        ax.add_patch(PathPatch(area_path, facecolor=_AREA_FACE, edgecolor=_AREA_EDGE, lw=1.2, zorder=1))
     handles.append(Patch(facecolor=_AREA_FACE, edgecolor=_AREA_EDGE, label="area to cover"))
     if plan.exclusions_xy:
         for zone in plan.exclusions_xy:
@@ -329,13 +324,9 @@ def render_map_figure(
         )
 
     # home, entry and the direction of the first line
-    ax.plot(
-        [0.0], [0.0], marker="^", ms=12, color="#ffd600", mec="black", mew=1.2, ls="none", zorder=8
-    )
+    ax.plot([0.0], [0.0], marker="^", ms=12, color="#ffd600", mec="black", mew=1.2, ls="none", zorder=8)
     handles.append(
-        Line2D(
-            [], [], marker="^", ms=10, color="#ffd600", mec="black", ls="none", label="home (0, 0)"
-        )
+        Line2D([], [], marker="^", ms=10, color="#ffd600", mec="black", ls="none", label="home (0, 0)")
     )
     if plan.passes and plan.passes[0].lines:
         first = plan.passes[0].lines[0]
@@ -345,9 +336,7 @@ def render_map_figure(
         dy = first.end_xy_m[1] - first.start_xy_m[1]
         norm = math.hypot(dx, dy) or 1.0
         arrow_m = 0.08 * span
-        ax.plot(
-            [ex], [ey], marker="o", ms=9, color="#00c853", mec="black", mew=1.0, ls="none", zorder=8
-        )
+        ax.plot([ex], [ey], marker="o", ms=9, color="#00c853", mec="black", mew=1.0, ls="none", zorder=8)
         ax.annotate(
             "",
             xy=(ex + arrow_m * dx / norm, ey + arrow_m * dy / norm),

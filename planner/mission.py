@@ -299,15 +299,12 @@ def validate_mission(
             problems.append(f"{label}: unknown frame {item.frame}")
             continue
         for n, value in enumerate(item.params, start=1):
-            if value is not None and not math.isfinite(value):
-                if n >= 5:
-                    problems.append(f"{label}: param{n} is {value}, not a number")
+            if n >= 5 and value is not None and not math.isfinite(value):
+                problems.append(f"{label}: param{n} is {value}, not a number")
         cmd = MavCmd(int(item.command))
         if cmd.is_nav and item.frame.is_global:
             if not (-90.0 <= item.lat_deg <= 90.0) or not (-180.0 <= item.lon_deg <= 180.0):
-                problems.append(
-                    f"{label}: latitude {item.lat_deg} / longitude {item.lon_deg} out of range"
-                )
+                problems.append(f"{label}: latitude {item.lat_deg} / longitude {item.lon_deg} out of range")
             elif item.lat_deg == 0.0 and item.lon_deg == 0.0 and cmd is not MavCmd.NAV_TAKEOFF:
                 problems.append(f"{label}: position is 0, 0 (null island); give a real position")
             if item.frame in (MavFrame.GLOBAL_RELATIVE_ALT, MavFrame.GLOBAL_RELATIVE_ALT_INT):
@@ -322,7 +319,5 @@ def validate_mission(
         shown = problems[:20]
         more = f"\n  ... and {len(problems) - 20} more" if len(problems) > 20 else ""
         raise MissionValidationError(
-            "the mission failed validation and will not be sent:\n  "
-            + "\n  ".join(shown)
-            + more
+            "the mission failed validation and will not be sent:\n  " + "\n  ".join(shown) + more
         )

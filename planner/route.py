@@ -108,7 +108,9 @@ class Router:
         while route[-1] != start:
             route.append(previous[route[-1]])
         points = {start: a, goal: b}
-        return [points.get(k) or (float(self._nodes[k][0]), float(self._nodes[k][1])) for k in reversed(route)]
+        return [
+            points.get(k) or (float(self._nodes[k][0]), float(self._nodes[k][1])) for k in reversed(route)
+        ]
 
     def _graph(self) -> dict[int, list[tuple[int, float]]]:
         if self._adjacency is None:
@@ -125,7 +127,9 @@ class Router:
         return self._adjacency
 
 
-def boustrophedon(rows: Sequence[Sequence[int]], reverse_rows: bool, first_direction: int) -> list[tuple[int, int]]:
+def boustrophedon(
+    rows: Sequence[Sequence[int]], reverse_rows: bool, first_direction: int
+) -> list[tuple[int, int]]:
     """(segment index, direction) in flight order.
 
     ``rows`` lists, per row in ascending v, its segment indices in ascending u.

@@ -124,7 +124,7 @@ def parse_spec(data: Mapping[str, Any], file: Path) -> MissionSpec:
 
     camera_data = data.get("camera")
     if not isinstance(camera_data, dict):
-        raise SpecError(f"{where}: a [camera] table is required (model = \"...\" or the sensor fields)")
+        raise SpecError(f'{where}: a [camera] table is required (model = "..." or the sensor fields)')
     camera_fields = dict(camera_data)
     orientation_text = camera_fields.pop("orientation", "landscape")
     try:
@@ -166,16 +166,13 @@ def _parse_survey(value: Any, where: str) -> SurveySpec:
     elif isinstance(raw_direction, int | float) and not isinstance(raw_direction, bool):
         direction = float(raw_direction) % 360.0
     else:
-        raise SpecError(
-            f"{section}: direction_deg = {raw_direction!r}; use \"auto\" or a bearing in degrees"
-        )
+        raise SpecError(f'{section}: direction_deg = {raw_direction!r}; use "auto" or a bearing in degrees')
     trigger_text = value.get("trigger", "distance")
     try:
         trigger = TriggerMode(trigger_text)
     except ValueError:
         raise SpecError(
-            f"{section}: trigger = {trigger_text!r}; use one of "
-            f"{', '.join(t.value for t in TriggerMode)}"
+            f"{section}: trigger = {trigger_text!r}; use one of {', '.join(t.value for t in TriggerMode)}"
         ) from None
     obliques_raw = value.get("oblique", [])
     if not isinstance(obliques_raw, list):
@@ -236,8 +233,7 @@ def _parse_vehicle(value: Any, where: str) -> VehicleSpec:
         autopilot = Autopilot(autopilot_text)
     except ValueError:
         raise SpecError(
-            f"{section}: autopilot = {autopilot_text!r}; use one of "
-            f"{', '.join(a.value for a in Autopilot)}"
+            f"{section}: autopilot = {autopilot_text!r}; use one of {', '.join(a.value for a in Autopilot)}"
         ) from None
     home = value.get("home")
     home_lat = home_lon = None
@@ -254,9 +250,7 @@ def _parse_vehicle(value: Any, where: str) -> VehicleSpec:
     max_alt = _number(value, "max_alt_agl_m", section, 1.0, 10000.0, default=120.0)
     takeoff = _number(value, "takeoff_alt_m", section, 1.0, 10000.0, default=30.0)
     if takeoff > max_alt:
-        raise SpecError(
-            f"{section}: takeoff_alt_m = {takeoff} is above max_alt_agl_m = {max_alt}; lower it"
-        )
+        raise SpecError(f"{section}: takeoff_alt_m = {takeoff} is above max_alt_agl_m = {max_alt}; lower it")
     return VehicleSpec(
         type=vehicle_type,
         home_lat_deg=home_lat,
@@ -284,7 +278,7 @@ def _get(data: Mapping[str, Any], key: str, kind: type, where: str, default: Any
             raise SpecError(f"{where}: {key} is required")
         return default
     value = data[key]
-    if kind is not bool and isinstance(value, bool) or not isinstance(value, kind):
+    if (kind is not bool and isinstance(value, bool)) or not isinstance(value, kind):
         raise SpecError(f"{where}: {key} = {value!r} must be a {kind.__name__}")
     return value
 

@@ -14,6 +14,7 @@ The steps, each in its own module:
 
 from __future__ import annotations
 
+import itertools
 import logging
 import math
 from dataclasses import dataclass
@@ -52,13 +53,10 @@ def plan_survey(spec: MissionSpec) -> SurveyPlan:
     """Plan the survey a spec describes. Raises SfapError subclasses with the fix."""
     survey = spec.survey
     vehicle = spec.vehicle
-    camera = spec.camera
-    warnings: list[str] = []
-
     if vehicle.type is VehicleType.FIXED_WING and survey.trigger is TriggerMode.HOVER:
         raise SpecError(
-            f"{spec.source}: trigger = \"hover\" needs a vehicle that can hover; use "
-            f"trigger = \"distance\" for a fixed-wing"
+            f'{spec.source}: trigger = "hover" needs a vehicle that can hover; use '
+            f'trigger = "distance" for a fixed-wing'
         )
 
     polygons = load_polygons(spec.area_path)
@@ -104,7 +102,9 @@ def plan_polygons(spec: MissionSpec, polygons: list[Polygon], exclusions: list[P
     # home
     if vehicle.home_lat_deg is not None and vehicle.home_lon_deg is not None:
         home = HomePosition(
-            lat_deg=vehicle.home_lat_deg, lon_deg=vehicle.home_lon_deg, alt_amsl_m=vehicle.home_alt_amsl_m
+            lat_deg=vehicle.home_lat_deg,
+            lon_deg=vehicle.home_lon_deg,
+            alt_amsl_m=vehicle.home_alt_amsl_m,
         )
         hx, hy = frame.to_xy(home.lon_deg, home.lat_deg)
         home_xy = (float(hx), float(hy))
@@ -251,7 +251,7 @@ def auto_direction_deg(area_xy: Polygon | MultiPolygon) -> float:
     hull = area_xy.convex_hull
     coords = np.asarray(hull.exterior.coords)
     best: tuple[float, float, float] = (math.inf, 0.0, 0.0)  # (width, -edge length, bearing)
-    for (x0, y0), (x1, y1) in zip(coords[:-1], coords[1:], strict=True):
+    for (x0, y0), (x1, y1) in itertools.pairwise(coords):
         length = math.hypot(x1 - x0, y1 - y0)
         if length < 1e-6:
             continue
@@ -306,7 +306,10 @@ def _pass_definitions(spec: MissionSpec, direction: float, true_north_grid: floa
             # Lines parallel or perpendicular to the look direction (the frame's trapezoid is then
             # symmetric about the line axis), whichever is closer to the nadir direction.
             options = [heading % 180.0, (heading + 90.0) % 180.0]
-            line_dir = min(options, key=lambda d: min(abs(d - direction % 180.0), 180 - abs(d - direction % 180.0)))
+            line_dir = min(
+                options,
+                key=lambda d: min(abs(d - direction % 180.0), 180 - abs(d - direction % 180.0)),
+            )
             defs.append(
                 _PassDef(
                     kind=PassKind.OBLIQUE,
@@ -343,8 +346,14 @@ def _check_speed(
         return speed_m_s
     limits = {"trigger": ex.max_speed_for_trigger_m_s(trigger_m, camera.min_trigger_interval_s)}
     if camera.shutter_s is not None:
-        along_gsd = min(near_far_gsd_cm(camera, alt_agl_m, pdef.tilt_deg)) if pdef.tilt_deg else (
-            camera.gsd_y_cm(alt_agl_m) if spec.orientation is Orientation.LANDSCAPE else camera.gsd_x_cm(alt_agl_m)
+        along_gsd = (
+            min(near_far_gsd_cm(camera, alt_agl_m, pdef.tilt_deg))
+            if pdef.tilt_deg
+            else (
+                camera.gsd_y_cm(alt_agl_m)
+                if spec.orientation is Orientation.LANDSCAPE
+                else camera.gsd_x_cm(alt_agl_m)
+            )
         )
         limits["blur"] = ex.max_speed_for_blur_m_s(along_gsd, camera.shutter_s, spec.survey.max_blur_px)
     reason, limit = min(limits.items(), key=lambda kv: kv[1])

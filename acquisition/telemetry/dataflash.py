@@ -403,9 +403,7 @@ def read_dataflash(path: str | os.PathLike[str]) -> FlightLog:
         for k in range(int(m.group(1)))
     ]
     if bad:
-        warnings.append(
-            f"{p}: {len(set(bad))} bytes of corrupt data skipped, the first at byte {min(bad)}"
-        )
+        warnings.append(f"{p}: {len(set(bad))} bytes of corrupt data skipped, the first at byte {min(bad)}")
     for line in complaints:
         log.debug("DFReader: %s", line)
     if not tables:

@@ -155,9 +155,7 @@ class BootClock:
         return self.ref_boot_s + (u - self.utc_at_ref_s) / self.rate
 
 
-def fit_boot_clock(
-    boot_s: ArrayLike, utc_s: ArrayLike, *, min_span_for_rate_s: float = 10.0
-) -> BootClock:
+def fit_boot_clock(boot_s: ArrayLike, utc_s: ArrayLike, *, min_span_for_rate_s: float = 10.0) -> BootClock:
     """Fit UTC against boot time, robust to outliers (a clock jump when the autopilot's RTC is
     first set, a stale pair).
 

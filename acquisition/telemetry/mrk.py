@@ -113,13 +113,9 @@ def read_mrk_table(path: str | os.PathLike[str]) -> MrkEvents:
         values = tuple(float(g) for g in m.groups())
         lat, lon = values[6], values[7]
         if not (-90 <= lat <= 90 and -180 <= lon <= 180):
-            raise TelemetryError(
-                f"{p}, line {number}: latitude {lat}, longitude {lon} out of range"
-            )
+            raise TelemetryError(f"{p}, line {number}: latitude {lat}, longitude {lon} out of range")
         if not 0 <= values[1] < 604_800:
-            raise TelemetryError(
-                f"{p}, line {number}: GPS time of week {values[1]} s is outside 0..604800"
-            )
+            raise TelemetryError(f"{p}, line {number}: GPS time of week {values[1]} s is outside 0..604800")
         rows.append((*values, float(number)))
     if not rows:
         raise TelemetryError(f"{p}: no photo line in the MRK file")
@@ -159,9 +155,7 @@ def read_mrk(path: str | os.PathLike[str]) -> FlightLog:
             f"{int((table.rtk_status == s).sum())} {RTK_STATUS_NAMES.get(int(s), f'status {s}')}"
             for s in np.unique(table.rtk_status[not_fixed])
         )
-        warnings.append(
-            f"{p}: {int(not_fixed.sum())} of {len(table)} photos not RTK fixed ({kinds})"
-        )
+        warnings.append(f"{p}: {int(not_fixed.sum())} of {len(table)} photos not RTK fixed ({kinds})")
     for w in warnings:
         log.warning("%s", w)
     return FlightLog(

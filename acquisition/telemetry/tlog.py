@@ -71,9 +71,7 @@ _WANTED = (
 )
 
 
-def euler_deg_from_quaternion(
-    w: ArrayLike, x: ArrayLike, y: ArrayLike, z: ArrayLike
-) -> tuple[F64, F64, F64]:
+def euler_deg_from_quaternion(w: ArrayLike, x: ArrayLike, y: ArrayLike, z: ArrayLike) -> tuple[F64, F64, F64]:
     """(roll, pitch, yaw) in degrees, Tait-Bryan z-y'-x'' (yaw, then pitch, then roll), of the
     rotation from body (FRD) to local NED given as a quaternion (w, x, y, z), the convention of
     MAVLink and PX4. Yaw is 0-360 clockwise from north; the quaternion need not be unit."""
@@ -155,11 +153,7 @@ def _collect(path: str) -> _Reading:
             r.n_messages += 1
             r.last_good_end = conn.f.tell()
             src = (int(msg.get_srcSystem()), int(msg.get_srcComponent()))
-            if (
-                mtype == "HEARTBEAT"
-                and r.vehicle is None
-                and msg.autopilot != _MAV_AUTOPILOT_INVALID
-            ):
+            if mtype == "HEARTBEAT" and r.vehicle is None and msg.autopilot != _MAV_AUTOPILOT_INVALID:
                 r.vehicle = src  # the first autopilot heard; GCS, gimbals, cameras send INVALID
             if mtype not in _WANTED:
                 continue
@@ -174,9 +168,7 @@ def _collect(path: str) -> _Reading:
             if mtype == "SYSTEM_TIME":
                 _note_boot(r, float(msg.time_boot_ms))
                 seg = float(r.boot_segment)
-                r.rows[mtype].append(
-                    (rx_s, seg, float(msg.time_boot_ms), float(msg.time_unix_usec))
-                )
+                r.rows[mtype].append((rx_s, seg, float(msg.time_boot_ms), float(msg.time_unix_usec)))
             elif mtype == "CAMERA_FEEDBACK":
                 r.cam_idx[int(msg.cam_idx)] += 1
                 r.rows[mtype].append(
@@ -196,9 +188,7 @@ def _collect(path: str) -> _Reading:
                     )
                 )
             elif mtype == "CAMERA_TRIGGER":
-                r.rows[mtype].append(
-                    (rx_s, seg, _receive_boot_ms(r), float(msg.time_usec), float(msg.seq))
-                )
+                r.rows[mtype].append((rx_s, seg, _receive_boot_ms(r), float(msg.time_usec), float(msg.seq)))
             elif mtype == "CAMERA_IMAGE_CAPTURED":
                 if int(msg.capture_result) != 1:
                     r.failed_captures += 1
@@ -351,9 +341,7 @@ def _boot_clock(path: str, r: _Reading) -> _Clock:
     return _Clock(fits=fits, fallback=fallback, warnings=warnings)
 
 
-def _time_usec_to_utc(
-    time_usec: F64, seg: F64, rx_boot_ms: F64, clock: _Clock
-) -> tuple[F64, list[str]]:
+def _time_usec_to_utc(time_usec: F64, seg: F64, rx_boot_ms: F64, clock: _Clock) -> tuple[F64, list[str]]:
     """UTC of time_usec values that are Unix-epoch, GPS-epoch or boot microseconds; 0 -> the
     arrival time (boot clock of the last message before it)."""
     notes: list[str] = []
@@ -450,9 +438,7 @@ def _events(path: str, r: _Reading, clock: _Clock) -> tuple[CameraEvents | None,
     warnings += [f"{path}: {chosen}: {n}" for n in notes]
     untimed = int(np.count_nonzero(~np.isfinite(t)))
     if untimed:
-        warnings.append(
-            f"{path}: {untimed} {chosen} have no time that can be put on UTC and are left out"
-        )
+        warnings.append(f"{path}: {untimed} {chosen} have no time that can be put on UTC and are left out")
     dropped = len(a) - len(order)
     if dropped:
         log.info("%s: %d duplicated or untimed %s dropped", path, dropped, chosen)
@@ -559,8 +545,7 @@ def read_tlog(path: str | os.PathLike[str]) -> FlightLog:
     r = _collect(p)
     if r.n_messages == 0:
         raise TelemetryError(
-            f"{p}: no MAVLink message could be read ({size} bytes, {r.n_bad} corrupt packets); "
-            f"is it a .tlog?"
+            f"{p}: no MAVLink message could be read ({size} bytes, {r.n_bad} corrupt packets); is it a .tlog?"
         )
     warnings: list[str] = []
     if r.last_good_end < size:

@@ -96,9 +96,7 @@ def parse_angle_deg(text: str, *, positive: str, negative: str) -> float:
     mags = [abs(v) for v in numbers]
     if any(v >= 60 for v in mags[1:]):
         raise ValueError("minutes and seconds must be below 60")
-    value = (
-        mags[0] + (mags[1] / 60 if len(mags) > 1 else 0) + (mags[2] / 3600 if len(mags) > 2 else 0)
-    )
+    value = mags[0] + (mags[1] / 60 if len(mags) > 1 else 0) + (mags[2] / 3600 if len(mags) > 2 else 0)
     if letters:
         letter = letters[0].upper()
         if letter not in (positive, negative):
@@ -156,11 +154,7 @@ def read_csv_track(path: str | os.PathLike[str]) -> FlightLog:
     has_split = "gpsdatestamp" in index and "gpstimestamp" in index
     missing = [c for c in CSV_REQUIRED if c not in index]
     if missing or not (has_datetime or has_split):
-        need = (
-            ["GPSDateTime (or GPSDateStamp and GPSTimeStamp)"]
-            if not (has_datetime or has_split)
-            else []
-        )
+        need = ["GPSDateTime (or GPSDateStamp and GPSTimeStamp)"] if not (has_datetime or has_split) else []
         need += [{"gpslatitude": "GPSLatitude", "gpslongitude": "GPSLongitude"}[c] for c in missing]
         raise TelemetryError(
             f"{p}, line {header_line}: the header lacks {', '.join(need)}; found "
@@ -227,9 +221,7 @@ def read_csv_track(path: str | os.PathLike[str]) -> FlightLog:
                         col.values.append(_altitude_m(value))
                     else:
                         col.values.append(
-                            float(_NUMBER.findall(value)[0])
-                            if _NUMBER.search(value)
-                            else float(value)
+                            float(_NUMBER.findall(value)[0]) if _NUMBER.search(value) else float(value)
                         )
             except ValueError as exc:
                 raise TelemetryError(f"{p}, line {line}: {what} {value!r}: {exc}") from None
@@ -274,9 +266,7 @@ def read_csv_track(path: str | os.PathLike[str]) -> FlightLog:
         )
     for w in warnings:
         log.warning("%s", w)
-    return FlightLog(
-        path=p, format="csv", positions=positions, attitudes=attitudes, warnings=tuple(warnings)
-    )
+    return FlightLog(path=p, format="csv", positions=positions, attitudes=attitudes, warnings=tuple(warnings))
 
 
 def _parse_iso_time(text: str) -> float:
@@ -357,9 +347,7 @@ def read_gpx(path: str | os.PathLike[str]) -> FlightLog:
             f"{p}, line {exc.lineno}: not well-formed XML ({expat.ErrorString(exc.code)})"
         ) from None
     if errors:
-        raise TelemetryError(
-            errors[0] + (f" (and {len(errors) - 1} more)" if len(errors) > 1 else "")
-        )
+        raise TelemetryError(errors[0] + (f" (and {len(errors) - 1} more)" if len(errors) > 1 else ""))
     if not points:
         raise TelemetryError(f"{p}: no <trkpt> in the file; a GPX track is needed")
     t = np.array([pt[4] for pt in points], dtype=np.float64)

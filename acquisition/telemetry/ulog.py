@@ -269,8 +269,7 @@ def read_ulog(path: str | os.PathLike[str]) -> FlightLog:
     end, size, count = ulog_framing_end(p)
     if end < size:
         warnings.append(
-            f"{p}: reading stopped at byte {end} of {size} after {count} messages "
-            f"(truncated or corrupt tail)"
+            f"{p}: reading stopped at byte {end} of {size} after {count} messages (truncated or corrupt tail)"
         )
     if ulog.file_corruption:
         warnings.append(f"{p}: pyulog found corrupt data and skipped it")

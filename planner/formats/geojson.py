@@ -188,9 +188,7 @@ def _render_rows(fields: Sequence[_Field], n: int, separator: str = ",\n") -> It
     ``separator`` (a generator, so that only one chunk's table is alive at a time)."""
     sep = np.frombuffer(separator.encode(), dtype=np.uint8)
     literals = {
-        id(f): np.frombuffer(f.text.encode("utf-8"), dtype=np.uint8)
-        for f in fields
-        if isinstance(f, _Lit)
+        id(f): np.frombuffer(f.text.encode("utf-8"), dtype=np.uint8) for f in fields if isinstance(f, _Lit)
     }
     for start in range(0, n, _CHUNK_ROWS):
         stop = min(n, start + _CHUNK_ROWS)
@@ -218,9 +216,7 @@ def _render_rows(fields: Sequence[_Field], n: int, separator: str = ",\n") -> It
         yield piece[: -sep.shape[0]] if stop == n else piece  # none after the last row
 
 
-def _collection(
-    name: str, kind: str, bbox: Sequence[float] | None, features: Iterable[bytes]
-) -> bytes:
+def _collection(name: str, kind: str, bbox: Sequence[float] | None, features: Iterable[bytes]) -> bytes:
     """The FeatureCollection text around ``features``."""
     head: dict[str, object] = {"type": "FeatureCollection", "name": name, "sfap_layer": kind}
     if bbox is not None and all(np.isfinite(bbox)):
@@ -279,10 +275,7 @@ def flight_lines_geojson_bytes(plan: SurveyPlan) -> bytes:
         return np.asarray(values, dtype=np.float64).reshape(n)
 
     look = col(
-        [
-            p.look_heading_deg if p.look_heading_deg is not None else ln.heading_deg
-            for _, p, ln in lines
-        ]
+        [p.look_heading_deg if p.look_heading_deg is not None else ln.heading_deg for _, p, ln in lines]
     )
     fields: list[_Field] = [
         _Lit('{"type":"Feature","geometry":{"type":"LineString","coordinates":[['),
@@ -457,9 +450,7 @@ def area_geojson_bytes(plan: SurveyPlan) -> bytes:
             ensure_ascii=False,
         ).encode("utf-8")
     )
-    for k, (zone_ll, zone_xy) in enumerate(
-        zip(plan.exclusions_lonlat, plan.exclusions_xy, strict=True)
-    ):
+    for k, (zone_ll, zone_xy) in enumerate(zip(plan.exclusions_lonlat, plan.exclusions_xy, strict=True)):
         features.append(
             json.dumps(
                 {

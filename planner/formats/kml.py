@@ -113,9 +113,7 @@ def _ring2d(coords: Iterable[Sequence[float]]) -> str:
     return " ".join(f"{c[0]:.8f},{c[1]:.8f},0" for c in coords)
 
 
-def _placemark(
-    parent: ET.Element, name: str, style: str, description: str | None = None
-) -> ET.Element:
+def _placemark(parent: ET.Element, name: str, style: str, description: str | None = None) -> ET.Element:
     # KML 2.2 order inside a Feature: name, ..., description, ..., styleUrl, ..., Geometry
     mark = _sub(parent, "Placemark")
     _sub(mark, "name", name)
@@ -330,8 +328,7 @@ def kml_document(
         path_folder,
         "Flight path",
         "path",
-        f"{s.flight_distance_m / 1000:.2f} km, about {s.flight_time_s / 60:.0f} min, "
-        f"take-off to return.",
+        f"{s.flight_distance_m / 1000:.2f} km, about {s.flight_time_s / 60:.0f} min, take-off to return.",
     )
     _line_string(mark, [(lon, lat, path_alts.of(alt)) for lon, lat, alt in track], path_alts.mode)
 
@@ -357,9 +354,7 @@ def kml_document(
                 f"line-{p.kind.value}",
                 f"heading {ln.heading_deg:.1f} deg, {ln.length_m:.1f} m",
             )
-            _line_string(
-                mark, [(lon[k, 0], lat[k, 0], alt), (lon[k, 1], lat[k, 1], alt)], alts.mode
-            )
+            _line_string(mark, [(lon[k, 0], lat[k, 0], alt), (lon[k, 1], lat[k, 1], alt)], alts.mode)
 
     step = thin_step(len(st), max_stations)
     shown = np.arange(0, len(st), step) if max_stations > 0 else np.zeros(0, dtype=np.int64)

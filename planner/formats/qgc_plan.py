@@ -163,9 +163,7 @@ def plan_document(mission: Mission) -> dict[str, Any]:
             "command": int(item.command),
             "doJumpId": index,
             "frame": int(item.frame),
-            "params": [
-                _json_number(p, f"{where} param{n}") for n, p in enumerate(item.params, start=1)
-            ],
+            "params": [_json_number(p, f"{where} param{n}") for n, p in enumerate(item.params, start=1)],
             "type": "SimpleItem",
         }
         if _specifies_altitude(item):
@@ -264,9 +262,7 @@ def _simple_item(raw: object, where: str, source: str) -> tuple[MissionItem, int
             raise MissionFileError(f"{source}: {where} coordinate is not [lat, lon, alt]")
         params = [*params, *coordinate]
     if len(params) != 7:
-        raise MissionFileError(
-            f"{source}: {where} has {len(params)} params, expected 7 (param1..param7)"
-        )
+        raise MissionFileError(f"{source}: {where} has {len(params)} params, expected 7 (param1..param7)")
     command = _integer(obj["command"], f"{where} command", source)
     frame_number = _integer(obj["frame"], f"{where} frame", source)
     try:
@@ -278,9 +274,7 @@ def _simple_item(raw: object, where: str, source: str) -> tuple[MissionItem, int
         ) from None
     autocontinue = obj["autoContinue"]
     if not isinstance(autocontinue, bool):
-        raise MissionFileError(
-            f"{source}: {where} autoContinue is {autocontinue!r}, expected true or false"
-        )
+        raise MissionFileError(f"{source}: {where} autoContinue is {autocontinue!r}, expected true or false")
     values = [_number_or_nan(p, f"{where} param{n}", source) for n, p in enumerate(params, start=1)]
     p1, p2, p3, p4 = (None if math.isnan(v) else v for v in values[:4])
     do_jump_id = obj.get("doJumpId")
@@ -300,9 +294,7 @@ def _simple_item(raw: object, where: str, source: str) -> tuple[MissionItem, int
     return item, jump_id
 
 
-def _complex_items(
-    obj: Mapping[str, Any], where: str, source: str
-) -> list[tuple[MissionItem, int | None]]:
+def _complex_items(obj: Mapping[str, Any], where: str, source: str) -> list[tuple[MissionItem, int | None]]:
     """Expand a QGC ComplexItem into the simple items QGC generated and saved with it."""
     complex_type = obj.get("complexItemType")
     if not isinstance(complex_type, str):
@@ -328,8 +320,7 @@ def _complex_items(
             f"QGroundControl"
         )
     return [
-        _simple_item(raw, f"{label} generated item {n}", source)
-        for n, raw in enumerate(generated, start=1)
+        _simple_item(raw, f"{label} generated item {n}", source) for n, raw in enumerate(generated, start=1)
     ]
 
 
@@ -340,8 +331,7 @@ def _autopilot_from(firmware_type: int, source: str) -> Autopilot:
         # QGC writes 0 (generic) for plans made with no firmware chosen; the uploader learns
         # the real autopilot from the vehicle's heartbeat anyway.
         logger.warning(
-            "%s: firmwareType %d is neither ArduPilot (3) nor PX4 (12); treating the plan as "
-            "ArduPilot",
+            "%s: firmwareType %d is neither ArduPilot (3) nor PX4 (12); treating the plan as ArduPilot",
             source,
             firmware_type,
         )
@@ -356,8 +346,7 @@ def _vehicle_type_from(vehicle_type: int | None, source: str) -> VehicleType:
     if vehicle_type in _VTOL_TYPES:
         return VehicleType.VTOL
     logger.warning(
-        "%s: vehicleType %d (MAV_TYPE) is not a multirotor, fixed wing or VTOL; treating it as "
-        "a multirotor",
+        "%s: vehicleType %d (MAV_TYPE) is not a multirotor, fixed wing or VTOL; treating it as a multirotor",
         source,
         vehicle_type,
     )
@@ -369,9 +358,7 @@ def _speed(mission: Mapping[str, Any], key: str, default: float, source: str) ->
         return default
     value = _as_number(mission[key])
     if value is None or not math.isfinite(value) or value <= 0:
-        raise MissionFileError(
-            f"{source}: mission.{key} is {mission[key]!r}, expected a speed in m/s > 0"
-        )
+        raise MissionFileError(f"{source}: mission.{key} is {mission[key]!r}, expected a speed in m/s > 0")
     return value
 
 
@@ -408,9 +395,7 @@ def mission_from_plan_document(document: object, *, source: str = "<plan>") -> M
         raise MissionFileError(
             f"{source}: mission.plannedHomePosition is {home_raw!r}, expected [lat, lon, alt AMSL]"
         )
-    lat, lon, alt = (
-        _number_or_nan(v, f"plannedHomePosition[{k}]", source) for k, v in enumerate(home_raw)
-    )
+    lat, lon, alt = (_number_or_nan(v, f"plannedHomePosition[{k}]", source) for k, v in enumerate(home_raw))
     if math.isnan(lat) or math.isnan(lon):
         raise MissionFileError(f"{source}: plannedHomePosition has no latitude/longitude")
     if math.isnan(alt):
@@ -420,9 +405,7 @@ def mission_from_plan_document(document: object, *, source: str = "<plan>") -> M
 
     firmware_type = _integer(mission["firmwareType"], "mission.firmwareType", source)
     vehicle_raw = mission.get("vehicleType")
-    vehicle_type = (
-        None if vehicle_raw is None else _integer(vehicle_raw, "mission.vehicleType", source)
-    )
+    vehicle_type = None if vehicle_raw is None else _integer(vehicle_raw, "mission.vehicleType", source)
 
     raw_items = mission["items"]
     if not isinstance(raw_items, list):
@@ -454,9 +437,7 @@ def mission_from_plan_document(document: object, *, source: str = "<plan>") -> M
     }
     for key in ("geoFence", "rallyPoints"):
         section = root.get(key)
-        if isinstance(section, dict) and any(
-            section.get(k) for k in ("circles", "polygons", "points")
-        ):
+        if isinstance(section, dict) and any(section.get(k) for k in ("circles", "polygons", "points")):
             logger.warning("%s: the plan's %s is kept in metadata, not in the mission", source, key)
             metadata[key] = section
     return Mission(
@@ -470,9 +451,7 @@ def mission_from_plan_document(document: object, *, source: str = "<plan>") -> M
     )
 
 
-def _resolve_jumps(
-    collected: list[tuple[MissionItem, int | None]], source: str
-) -> list[MissionItem]:
+def _resolve_jumps(collected: list[tuple[MissionItem, int | None]], source: str) -> list[MissionItem]:
     """DO_JUMP param1 holds the target's doJumpId in a plan; make it the target's position."""
     position_by_id: dict[int, int] = {}
     for position, (_item, jump_id) in enumerate(collected, start=1):

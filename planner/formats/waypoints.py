@@ -71,9 +71,7 @@ def format_number(value: float | None, *, min_decimals: int = _MIN_DECIMALS) -> 
         return _NAN_TEXT
     number = float(value)
     if math.isinf(number):
-        raise MissionValidationError(
-            f"{number} cannot be written to a mission file; give a finite number"
-        )
+        raise MissionValidationError(f"{number} cannot be written to a mission file; give a finite number")
     text = format(Decimal(repr(number)), "f")
     whole, _, decimals = text.partition(".")
     decimals = decimals.ljust(min_decimals, "0")
@@ -107,9 +105,7 @@ def waypoints_text(mission: Mission) -> str:
     return "\n".join(lines) + "\n"
 
 
-def write_waypoints(
-    mission: Mission, path: str | os.PathLike[str], *, overwrite: bool = True
-) -> Path:
+def write_waypoints(mission: Mission, path: str | os.PathLike[str], *, overwrite: bool = True) -> Path:
     """Write ``mission`` to ``path`` as QGC WPL 110, atomically. Returns the path written."""
     return atomic_write_text(path, waypoints_text(mission), overwrite=overwrite)
 
@@ -237,9 +233,7 @@ def parse_waypoints(text: str, *, source: str = "<waypoints>") -> Mission:
             continue
         items.append(item)
     if home is None:
-        raise MissionFileError(
-            f"{source} has a header but no rows; expected row 0, the home position"
-        )
+        raise MissionFileError(f"{source} has a header but no rows; expected row 0, the home position")
     if home_frame is not MavFrame.GLOBAL:
         logger.warning(
             "%s: the home row has frame %s, not 0 (GLOBAL); its altitude %.2f m is taken as AMSL",

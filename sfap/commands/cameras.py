@@ -50,8 +50,7 @@ def _echo_show(figures: CameraFigures) -> None:
         ("image", f"{camera.image_width_px} x {camera.image_height_px} px"),
         (
             "focal length",
-            f"{camera.focal_length_mm:g} mm "
-            f"({figures.focal_length_35mm_equiv_mm:.1f} mm 35 mm-equivalent)",
+            f"{camera.focal_length_mm:g} mm ({figures.focal_length_35mm_equiv_mm:.1f} mm 35 mm-equivalent)",
         ),
         (
             "pixel pitch x / y",
@@ -59,8 +58,7 @@ def _echo_show(figures: CameraFigures) -> None:
         ),
         (
             "field of view x / y / diagonal",
-            f"{figures.fov_x_deg:.1f} / {figures.fov_y_deg:.1f} / "
-            f"{figures.fov_diagonal_deg:.1f} deg",
+            f"{figures.fov_x_deg:.1f} / {figures.fov_y_deg:.1f} / {figures.fov_diagonal_deg:.1f} deg",
         ),
         ("min trigger interval", f"{camera.min_trigger_interval_s:g} s"),
         ("shutter (blur check)", shutter),
@@ -68,8 +66,7 @@ def _echo_show(figures: CameraFigures) -> None:
         (f"GSD x / y at {height}", f"{figures.gsd_x_cm:.3f} / {figures.gsd_y_cm:.3f} cm"),
         (
             f"footprint at {height}",
-            f"{figures.footprint_width_m:.1f} x {figures.footprint_height_m:.1f} m "
-            f"(image width x height)",
+            f"{figures.footprint_width_m:.1f} x {figures.footprint_height_m:.1f} m (image width x height)",
         ),
         (f"scale at {height}", f"1:{figures.scale_number:.0f}"),
     ]

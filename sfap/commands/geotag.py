@@ -100,9 +100,7 @@ def command(
     Example: sfap geotag card/DCIM --log flight.tlog -o tagged/
     """
     if in_place and backup_dir is None:
-        raise click.UsageError(
-            "--in-place needs --backup-dir (the originals are copied there first)"
-        )
+        raise click.UsageError("--in-place needs --backup-dir (the originals are copied there first)")
     if backup_dir is not None and not in_place:
         raise click.UsageError("--backup-dir only applies with --in-place")
 
@@ -161,9 +159,7 @@ def _present(result: GeotagResult) -> None:
         )
     if result.unmatched_events:
         seqs = ", ".join(str(seq) for _, seq in result.unmatched_events)
-        rows.append(
-            ("dropped frames", f"{len(result.unmatched_events)} events without a frame: seq {seqs}")
-        )
+        rows.append(("dropped frames", f"{len(result.unmatched_events)} events without a frame: seq {seqs}"))
     if result.extra_frames:
         rows.append(
             (

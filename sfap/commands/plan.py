@@ -73,7 +73,7 @@ def command(spec_file: Path, out_dir: Path, overwrite: bool, as_json: bool, no_p
         if key is None and label.startswith("footprint"):
             value = f"{summary['footprint_along_m']:.1f} x {summary['footprint_across_m']:.1f} m"
         elif key == "flight_time_s":
-            seconds = int(round(float(summary[key])))  # type: ignore[arg-type]
+            seconds = round(float(summary[key]))  # type: ignore[arg-type]
             value = f"{seconds // 60} min {seconds % 60:02d} s"
         else:
             assert key is not None and fmt is not None

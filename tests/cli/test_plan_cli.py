@@ -90,7 +90,9 @@ def test_bad_input_gives_one_message_and_no_files(
     assert edit[0] in source
     spec = tmp_path / "bad.toml"
     spec.write_text(source.replace(*edit))
-    (tmp_path / "bardenas-gully.geojson").write_bytes((REPO / "missions" / "bardenas-gully.geojson").read_bytes())
+    (tmp_path / "bardenas-gully.geojson").write_bytes(
+        (REPO / "missions" / "bardenas-gully.geojson").read_bytes()
+    )
     out = tmp_path / "out"
     result = CliRunner().invoke(cli, ["plan", str(spec), "-o", str(out)])
     assert result.exit_code == code, result.output

@@ -74,7 +74,6 @@ def replay_triggers(mission: Mission, to_xy: Any) -> np.ndarray:
     return np.asarray(photos, float).reshape(-1, 2)
 
 
-
 def _fire_along_leg(
     a: tuple[float, float], b: tuple[float, float], last: tuple[float, float], d: float
 ) -> list[tuple[float, float]]:

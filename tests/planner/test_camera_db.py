@@ -152,15 +152,11 @@ def test_textbook_camera_gives_2_42_cm_at_75_6_m() -> None:
 
 def _qgc_gsd_cm(camera: Camera, height_m: float) -> float:
     """QGroundControl CameraCalc: GSD from the sensor width only."""
-    return (
-        100.0 * height_m * camera.sensor_width_mm / (camera.image_width_px * camera.focal_length_mm)
-    )
+    return 100.0 * height_m * camera.sensor_width_mm / (camera.image_width_px * camera.focal_length_mm)
 
 
 def _qgc_height_m(camera: Camera, gsd_cm: float) -> float:
-    return (
-        gsd_cm * camera.image_width_px * camera.focal_length_mm / (100.0 * camera.sensor_width_mm)
-    )
+    return gsd_cm * camera.image_width_px * camera.focal_length_mm / (100.0 * camera.sensor_width_mm)
 
 
 def test_qgc_formulas_match_for_every_square_pitch_camera() -> None:
@@ -168,12 +164,10 @@ def test_qgc_formulas_match_for_every_square_pitch_camera() -> None:
     assert len(square) >= 12  # the comparison covers most of the database
     for camera in square:
         for height_m in (30.0, 75.6, 120.0):
-            assert camera.gsd_cm(height_m) == pytest.approx(
-                _qgc_gsd_cm(camera, height_m), rel=1e-3
-            ), camera.id
-        assert camera.height_for_gsd_m(2.0) == pytest.approx(
-            _qgc_height_m(camera, 2.0), rel=1e-3
-        ), camera.id
+            assert camera.gsd_cm(height_m) == pytest.approx(_qgc_gsd_cm(camera, height_m), rel=1e-3), (
+                camera.id
+            )
+        assert camera.height_for_gsd_m(2.0) == pytest.approx(_qgc_height_m(camera, 2.0), rel=1e-3), camera.id
     for camera in CAMERAS.values():
         # Along the image width the two agree exactly for every camera.
         assert camera.gsd_x_cm(100.0) == pytest.approx(_qgc_gsd_cm(camera, 100.0), rel=1e-12)
@@ -291,9 +285,7 @@ def test_typo_in_an_id_still_finds_it() -> None:
 
 
 def test_model_alone_is_the_database_camera() -> None:
-    assert camera_from_mapping({"model": "dji-air-2s"}, where="m.toml [camera]") is get_camera(
-        "dji-air-2s"
-    )
+    assert camera_from_mapping({"model": "dji-air-2s"}, where="m.toml [camera]") is get_camera("dji-air-2s")
 
 
 def test_model_with_overrides() -> None:
@@ -391,9 +383,7 @@ def test_unknown_key_is_an_error_listing_the_valid_keys() -> None:
         ({"model": ""}, "non-empty string"),
     ],
 )
-def test_bad_camera_keys_name_the_value_and_the_place(
-    data: dict[str, object], fragment: str
-) -> None:
+def test_bad_camera_keys_name_the_value_and_the_place(data: dict[str, object], fragment: str) -> None:
     with pytest.raises(CameraError) as info:
         camera_from_mapping(data, where="spec.toml [camera]")
     assert fragment in str(info.value)

@@ -42,7 +42,9 @@ def test_textbook_air_base_and_interval_by_hand() -> None:
     )
 
 
-@pytest.mark.parametrize("camera", [c for c in load_cameras().values() if c.pitch_is_square], ids=lambda c: c.id)
+@pytest.mark.parametrize(
+    "camera", [c for c in load_cameras().values() if c.pitch_is_square], ids=lambda c: c.id
+)
 def test_qgc_formulas_exact_for_square_pitch(camera: Camera) -> None:
     # QGC CameraCalc: GSD = 100 H sw / (iw f); H = GSD iw f / (100 sw); footprints from that GSD
     height = 87.3
@@ -50,7 +52,10 @@ def test_qgc_formulas_exact_for_square_pitch(camera: Camera) -> None:
     assert camera.gsd_x_cm(height) == pytest.approx(qgc_gsd, rel=1e-12)
     qgc_height = qgc_gsd * camera.image_width_px * camera.focal_length_mm / (100.0 * camera.sensor_width_mm)
     assert camera.height_for_gsd_m(camera.gsd_x_cm(height)) == pytest.approx(
-        qgc_height, rel=2e-3 if not math.isclose(camera.pixel_pitch_x_mm, camera.pixel_pitch_y_mm, rel_tol=1e-12) else 1e-12
+        qgc_height,
+        rel=2e-3
+        if not math.isclose(camera.pixel_pitch_x_mm, camera.pixel_pitch_y_mm, rel_tol=1e-12)
+        else 1e-12,
     )
     fp = camera.footprint(height, Orientation.LANDSCAPE)
     assert fp.across_m == pytest.approx(camera.image_width_px * qgc_gsd / 100.0, rel=1e-12)

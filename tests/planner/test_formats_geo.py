@@ -72,12 +72,8 @@ def ray_cast_footprints(
     """
     t = math.radians(tilt_deg)
     lam = np.radians(look_heading_deg)
-    d = np.stack(
-        [np.sin(lam) * math.sin(t), np.cos(lam) * math.sin(t), -np.full_like(lam, math.cos(t))], -1
-    )
-    u = np.stack(
-        [np.sin(lam) * math.cos(t), np.cos(lam) * math.cos(t), np.full_like(lam, math.sin(t))], -1
-    )
+    d = np.stack([np.sin(lam) * math.sin(t), np.cos(lam) * math.sin(t), -np.full_like(lam, math.cos(t))], -1)
+    u = np.stack([np.sin(lam) * math.cos(t), np.cos(lam) * math.cos(t), np.full_like(lam, math.sin(t))], -1)
     r = np.cross(d, u)
     half_w, half_h = camera.sensor_width_mm / 2, camera.sensor_height_mm / 2
     out = np.empty((x_m.shape[0], 4, 2))
@@ -503,16 +499,12 @@ def test_empty_plan_still_writes_valid_geojson(tmp_path: Path) -> None:
             for name in st.__dataclass_fields__  # every column, no rows
         }
     )
-    plan = SurveyPlan(
-        **{**{f: getattr(full, f) for f in full.__dataclass_fields__}, "stations": empty}
-    )
+    plan = SurveyPlan(**{**{f: getattr(full, f) for f in full.__dataclass_fields__}, "stations": empty})
     for writer in (write_stations_geojson, write_footprints_geojson):
         doc = json.loads(writer(plan, tmp_path / f"{writer.__name__}.json").read_text())
         assert doc["features"] == [] and "bbox" not in doc
     root = ET.parse(write_kml(plan, tmp_path / "m.kml")).getroot()
-    assert "All 0 exposure stations." in [
-        f.findtext(_k("description")) for f in root.iter(_k("Folder"))
-    ]
+    assert "All 0 exposure stations." in [f.findtext(_k("description")) for f in root.iter(_k("Folder"))]
     assert mpimg.imread(render_map_png(plan, tmp_path / "map.png")).shape[0] > 500
 
 
@@ -586,9 +578,7 @@ def test_kml_structure_and_placemarks(plan: SurveyPlan, tmp_path: Path) -> None:
     # home AMSL is known: absolute altitude = home AMSL + altitude above home
     mode = stations[k].find(f"{_k('Point')}/{_k('altitudeMode')}")
     assert mode is not None and mode.text == "absolute"
-    assert xyz[0, 2] == pytest.approx(
-        plan.home.alt_amsl_m + plan.stations.alt_rel_home_m[k], abs=0.01
-    )
+    assert xyz[0, 2] == pytest.approx(plan.home.alt_amsl_m + plan.stations.alt_rel_home_m[k], abs=0.01)
 
     top_names = [m.findtext(_k("name")) for m in doc.findall(_k("Placemark"))]
     assert top_names == ["Home", "Entry"]
@@ -600,9 +590,7 @@ def test_kml_flight_path_follows_the_mission(plan: SurveyPlan, tmp_path: Path) -
     line = folder.find(f"{_k('Placemark')}/{_k('LineString')}")
     assert line is not None
     xyz = _parse_coords(line.findtext(_k("coordinates")) or "")
-    nav = [
-        it for it in plan.mission.items if it.command in (MavCmd.NAV_TAKEOFF, MavCmd.NAV_WAYPOINT)
-    ]
+    nav = [it for it in plan.mission.items if it.command in (MavCmd.NAV_TAKEOFF, MavCmd.NAV_WAYPOINT)]
     # home on the ground, every positional item, back over home, landed
     assert len(xyz) == 1 + len(nav) + 2
     amsl = plan.home.alt_amsl_m
@@ -620,9 +608,7 @@ def test_kml_without_home_altitude_is_relative_to_ground_and_says_so(tmp_path: P
     assert doc is not None
     assert "unknown" in (doc.findtext(_k("description")) or "")
     airborne = [
-        el.findtext(_k("altitudeMode"))
-        for el in root.iter()
-        if el.tag in (_k("Point"), _k("LineString"))
+        el.findtext(_k("altitudeMode")) for el in root.iter() if el.tag in (_k("Point"), _k("LineString"))
     ]
     assert "absolute" not in airborne and "relativeToGround" in airborne
     # a home altitude given by the caller makes them absolute again
@@ -645,9 +631,7 @@ def test_kml_thins_stations_and_says_so(plan: SurveyPlan, tmp_path: Path) -> Non
     names = [int(m.findtext(_k("name")) or -1) for m in marks]
     assert names == list(range(0, n, step))  # every k-th in flight order
     marks_none = ET.parse(write_kml(plan, tmp_path / "m0.kml", max_stations=0)).getroot()
-    assert not [
-        m for m in marks_none.iter(_k("Placemark")) if m.findtext(_k("styleUrl")) == "#station"
-    ]
+    assert not [m for m in marks_none.iter(_k("Placemark")) if m.findtext(_k("styleUrl")) == "#station"]
 
 
 # --- map.png -------------------------------------------------------------------------------
@@ -758,10 +742,7 @@ def test_writers_on_planned_missions(mission: Path, tmp_path: Path) -> None:
     west, south, east, north = area_shape.bounds
     for f in stations["features"][:: max(1, n // 200)]:
         lon, lat = f["geometry"]["coordinates"]
-        assert (
-            west - reach_deg < lon < east + reach_deg
-            and south - reach_deg < lat < north + reach_deg
-        )
+        assert west - reach_deg < lon < east + reach_deg and south - reach_deg < lat < north + reach_deg
     for f in footprints["features"][:: max(1, n // 500)]:
         ring = f["geometry"]["coordinates"][0]
         assert _ring_is_ccw(ring) and shape(f["geometry"]).is_valid
@@ -769,9 +750,7 @@ def test_writers_on_planned_missions(mission: Path, tmp_path: Path) -> None:
     root = ET.parse(write_kml(real, tmp_path / "m.kml")).getroot()
     assert root.tag == _k("kml")
     shown = len(range(0, n, max(1, math.ceil(n / 2000))))
-    stations_folder = next(
-        f for f in root.iter(_k("Folder")) if f.findtext(_k("name")) == "Stations"
-    )
+    stations_folder = next(f for f in root.iter(_k("Folder")) if f.findtext(_k("name")) == "Stations")
     assert len(stations_folder.findall(_k("Placemark"))) == shown
 
     img = mpimg.imread(render_map_png(real, tmp_path / "map.png"))

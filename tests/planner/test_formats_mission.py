@@ -394,9 +394,7 @@ def _qgc_would_load(doc: dict[str, Any]) -> list[str]:
     need(
         mission,
         "plannedHomePosition",
-        lambda v: (
-            isinstance(v, list) and len(v) == 3 and all(_is_double(x, null_ok=True) for x in v)
-        ),
+        lambda v: isinstance(v, list) and len(v) == 3 and all(_is_double(x, null_ok=True) for x in v),
         "mission",
     )
     need(mission, "items", lambda v: isinstance(v, list), "mission")
@@ -413,9 +411,7 @@ def _qgc_would_load(doc: dict[str, Any]) -> list[str]:
         need(
             item,
             "params",
-            lambda v: (
-                isinstance(v, list) and len(v) == 7 and all(_is_double(x, null_ok=True) for x in v)
-            ),
+            lambda v: isinstance(v, list) and len(v) == 7 and all(_is_double(x, null_ok=True) for x in v),
             where,
         )
         if "doJumpId" in item and not _is_double(item["doJumpId"]):

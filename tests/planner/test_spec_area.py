@@ -29,9 +29,7 @@ SQUARE = [[-1.60, 42.50], [-1.597, 42.50], [-1.597, 42.502], [-1.60, 42.502], [-
 
 
 def write(tmp_path: Path, toml: str, ring: list[list[float]] | None = None) -> Path:
-    (tmp_path / "area.geojson").write_text(
-        json.dumps({"type": "Polygon", "coordinates": [ring or SQUARE]})
-    )
+    (tmp_path / "area.geojson").write_text(json.dumps({"type": "Polygon", "coordinates": [ring or SQUARE]}))
     spec = tmp_path / "m.toml"
     spec.write_text(toml)
     return spec
@@ -46,18 +44,36 @@ def test_good_spec_loads(tmp_path: Path) -> None:
 @pytest.mark.parametrize(
     ("change", "pattern"),
     [
-        (("front_overlap_pct = 80", "front_overlap_pct = 97"), r"front_overlap_pct = 97 is outside 0 to 95"),
+        (
+            ("front_overlap_pct = 80", "front_overlap_pct = 97"),
+            r"front_overlap_pct = 97 is outside 0 to 95",
+        ),
         (("side_overlap_pct = 70", "side_overlap_pct = -5"), r"side_overlap_pct = -5 is outside"),
-        (("gsd_cm = 2.0", "gsd_cm = 2.0\naltitude_agl_m = 50"), "exactly one of gsd_cm and altitude_agl_m"),
+        (
+            ("gsd_cm = 2.0", "gsd_cm = 2.0\naltitude_agl_m = 50"),
+            "exactly one of gsd_cm and altitude_agl_m",
+        ),
         (("gsd_cm = 2.0", ""), "exactly one of gsd_cm and altitude_agl_m"),
-        (("speed_m_s = 5", "speed_m_s = 5\nsped = 3"), r"unknown key sped in \[survey\]; valid keys: .*speed_m_s"),
-        (("name = \"t\"", "name = \"t\"\ncolour = 1"), r"unknown key colour in the top level; valid keys"),
+        (
+            ("speed_m_s = 5", "speed_m_s = 5\nsped = 3"),
+            r"unknown key sped in \[survey\]; valid keys: .*speed_m_s",
+        ),
+        (
+            ('name = "t"', 'name = "t"\ncolour = 1'),
+            r"unknown key colour in the top level; valid keys",
+        ),
         (('type = "multirotor"', 'type = "blimp"'), "use one of multirotor, fixed_wing, vtol"),
         (("speed_m_s = 5", 'speed_m_s = "fast"'), "speed_m_s = 'fast' must be a number"),
-        (("speed_m_s = 5", 'trigger = "sometimes"'), "trigger = 'sometimes'; use one of distance, hover"),
-        (('[vehicle]', '[vehicle]\nhome = [42.5]'), r"home must be \[lat, lon\]"),
-        (("gsd_cm = 2.0", "gsd_cm = 2.0\ndirection_deg = \"north\""), 'use "auto" or a bearing'),
-        (("speed_m_s = 5", "speed_m_s = 5\n[[survey.oblique]]\ntilt_deg = 85"), r"tilt_deg = 85 is outside 5 to 60"),
+        (
+            ("speed_m_s = 5", 'trigger = "sometimes"'),
+            "trigger = 'sometimes'; use one of distance, hover",
+        ),
+        (("[vehicle]", "[vehicle]\nhome = [42.5]"), r"home must be \[lat, lon\]"),
+        (("gsd_cm = 2.0", 'gsd_cm = 2.0\ndirection_deg = "north"'), 'use "auto" or a bearing'),
+        (
+            ("speed_m_s = 5", "speed_m_s = 5\n[[survey.oblique]]\ntilt_deg = 85"),
+            r"tilt_deg = 85 is outside 5 to 60",
+        ),
     ],
 )
 def test_bad_values_name_the_key_and_the_fix(tmp_path: Path, change: tuple[str, str], pattern: str) -> None:
@@ -89,7 +105,10 @@ def test_camera_errors(tmp_path: Path) -> None:
         ([[0, 0], [1, 1], [1, 0], [0, 1], [0, 0]], "invalid .*Self-intersection"),
         ([[-1.6, 42.5], [-1.59, 42.5], [-1.59, 42.51]], "at least 4"),
         ([[-1.6, 42.5], [-1.59, 42.5], [-1.59, 42.51], [-1.6, 42.51]], "not closed"),
-        ([[615000, 4706000], [615100, 4706000], [615100, 4706100], [615000, 4706000]], "looks projected"),
+        (
+            [[615000, 4706000], [615100, 4706000], [615100, 4706100], [615000, 4706000]],
+            "looks projected",
+        ),
         ([[-1.6, 42.5], [-1.59, 42.5], [-1.58, 42.5], [-1.6, 42.5]], "empty"),
     ],
 )
@@ -111,7 +130,7 @@ def test_other_crs_and_formats(tmp_path: Path) -> None:
         load_polygons(path)
     shp = tmp_path / "a.shp"
     shp.write_bytes(b"x")
-    with pytest.raises(AreaError, match="GeoJSON .* or KML"):
+    with pytest.raises(AreaError, match=r"GeoJSON .* or KML"):
         load_polygons(shp)
     broken = tmp_path / "b.geojson"
     broken.write_text("{ nope")

@@ -17,14 +17,13 @@ import shapely
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from shapely.geometry import LineString, Polygon
+from survey_oracles import make_spec, replay_triggers
 
 from planner.camera import Orientation
 from planner.errors import PlanningError
-from planner.mission import MavCmd
+from planner.mission import Autopilot, MavCmd
 from planner.plan import SurveyPlan
 from planner.survey import plan_polygons
-
-from survey_oracles import make_spec, replay_triggers
 
 LON0, LAT0 = -1.60, 42.50
 M_PER_DEG_LAT = 111_132.0
@@ -39,15 +38,25 @@ def to_lonlat_polygon(xy: list[tuple[float, float]], holes: list[list[tuple[floa
 
 
 @st.composite
-def star_polygon(draw: st.DrawFn, centre: tuple[float, float] = (0.0, 0.0), r_min: float = 150.0, r_max: float = 450.0, n_max: int = 11) -> list[tuple[float, float]]:
+def star_polygon(
+    draw: st.DrawFn,
+    centre: tuple[float, float] = (0.0, 0.0),
+    r_min: float = 150.0,
+    r_max: float = 450.0,
+    n_max: int = 11,
+) -> list[tuple[float, float]]:
     """A random simple polygon: star-shaped around its centre, concave in general (metres)."""
     n = draw(st.integers(4, n_max))
-    angles = sorted(draw(st.lists(st.floats(0.0, 2 * math.pi, exclude_max=True), min_size=n, max_size=n, unique=True)))
+    angles = sorted(
+        draw(st.lists(st.floats(0.0, 2 * math.pi, exclude_max=True), min_size=n, max_size=n, unique=True))
+    )
     gaps = np.diff([*angles, angles[0] + 2 * math.pi])
     if gaps.max() > math.pi * 0.9 or gaps.min() < 0.05:
         angles = list(np.linspace(0, 2 * math.pi, n, endpoint=False) + draw(st.floats(0, 1)))
     radii = draw(st.lists(st.floats(r_min, r_max), min_size=n, max_size=n))
-    return [(centre[0] + r * math.sin(a), centre[1] + r * math.cos(a)) for a, r in zip(angles, radii, strict=True)]
+    return [
+        (centre[0] + r * math.sin(a), centre[1] + r * math.cos(a)) for a, r in zip(angles, radii, strict=True)
+    ]
 
 
 def check_plan(plan: SurveyPlan, front_pct: float, side_pct: float, clearance_m: float) -> None:
@@ -77,11 +86,13 @@ def check_plan(plan: SurveyPlan, front_pct: float, side_pct: float, clearance_m:
         assert np.all((within <= trigger + 1e-6) | (within > trigger))
         for line_obj in p.lines:
             seg_len = math.dist(line_obj.start_xy_m, line_obj.end_xy_m)
-            n = int(np.count_nonzero(
-                (stations.line_index[mask] == line_obj.line_index)
-                & (np.hypot(x - line_obj.start_xy_m[0], y - line_obj.start_xy_m[1]) <= seg_len + 1e-6)
-                & (np.hypot(x - line_obj.end_xy_m[0], y - line_obj.end_xy_m[1]) <= seg_len + 1e-6)
-            ))
+            n = int(
+                np.count_nonzero(
+                    (stations.line_index[mask] == line_obj.line_index)
+                    & (np.hypot(x - line_obj.start_xy_m[0], y - line_obj.start_xy_m[1]) <= seg_len + 1e-6)
+                    & (np.hypot(x - line_obj.end_xy_m[0], y - line_obj.end_xy_m[1]) <= seg_len + 1e-6)
+                )
+            )
             if n > 1:
                 assert (seg_len - 0.5 * (seg_len / (n - 0.5))) / (n - 1) <= trigger + 1e-6
 
@@ -91,7 +102,11 @@ def check_plan(plan: SurveyPlan, front_pct: float, side_pct: float, clearance_m:
     zones = shapely.union_all(plan.exclusions_xy) if plan.exclusions_xy else None
     for p in plan.passes:
         for line_obj in p.lines:
-            seg = LineString([line_obj.start_xy_m, line_obj.end_xy_m]) if line_obj.start_xy_m != line_obj.end_xy_m else shapely.Point(line_obj.start_xy_m)
+            seg = (
+                LineString([line_obj.start_xy_m, line_obj.end_xy_m])
+                if line_obj.start_xy_m != line_obj.end_xy_m
+                else shapely.Point(line_obj.start_xy_m)
+            )
             assert buffer.contains(seg), "camera on outside the area's buffer"
             if zones is not None:
                 assert seg.distance(zones) >= clearance_m - 1e-6, "camera on inside an exclusion"
@@ -128,9 +143,12 @@ def test_random_areas_keep_every_promise(
     outer_poly = Polygon(outer)
     holes = [hole] if hole is not None and outer_poly.buffer(-5).contains(Polygon(hole)) else []
     exclusions = []
-    if exclusion is not None and outer_poly.buffer(-5).contains(Polygon(exclusion)):
-        if not holes or not Polygon(holes[0]).buffer(25).intersects(Polygon(exclusion)):
-            exclusions = [to_lonlat_polygon(exclusion)]
+    fits = exclusion is not None and outer_poly.buffer(-5).contains(Polygon(exclusion))
+    apart = not holes or (
+        exclusion is not None and not Polygon(holes[0]).buffer(25).intersects(Polygon(exclusion))
+    )
+    if fits and apart and exclusion is not None:
+        exclusions = [to_lonlat_polygon(exclusion)]
     spec = make_spec(
         {
             "gsd_cm": 1.5,
@@ -229,7 +247,12 @@ def test_hover_mode_one_capture_per_station() -> None:
 def test_px4_items_have_no_home_and_use_gimbal_manager() -> None:
     square = [(0, 0), (200, 0), (200, 150), (0, 150)]
     spec = make_spec({"gsd_cm": 1.5})
-    spec = type(spec)(**{**spec.__dict__, "vehicle": type(spec.vehicle)(**{**spec.vehicle.__dict__, "autopilot": "px4"})})
+    spec = type(spec)(
+        **{
+            **spec.__dict__,
+            "vehicle": type(spec.vehicle)(**{**spec.vehicle.__dict__, "autopilot": Autopilot.PX4}),
+        }
+    )
     plan = plan_polygons(spec, [to_lonlat_polygon(square)], [])
     commands = [int(it.command) for it in plan.mission.items]
     assert commands[0] == MavCmd.NAV_TAKEOFF
@@ -258,7 +281,7 @@ def test_blur_limits_the_speed() -> None:
 
 def test_gsd_above_the_height_limit_is_refused() -> None:
     square = [(0, 0), (200, 0), (200, 150), (0, 150)]
-    spec = make_spec({"gsd_cm": 10.0})
+    spec = make_spec({"gsd_cm": 15.0})  # 548 m above ground with this camera; the limit is 400 m
     with pytest.raises(PlanningError, match="max_alt_agl_m"):
         plan_polygons(spec, [to_lonlat_polygon(square)], [])
 
