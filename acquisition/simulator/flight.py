@@ -292,6 +292,11 @@ class FlightSimulator:
             if self.mode is Mode.AUTO and self.armed:
                 self._start_nav(seq)
 
+    @property
+    def has_mission(self) -> bool:
+        """True when a mission with at least one item is loaded."""
+        return self._has_mission()
+
     def _has_mission(self) -> bool:
         return len(self.mission.items) > self._first_index
 

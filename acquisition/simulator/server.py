@@ -961,7 +961,8 @@ class SimulatedVehicle:
             for msg in self._recv_pipe.release(now):
                 self._handle(msg)
             with self._lock:
-                if self._auto_start and self.flight.gps_has_fix:
+                # --auto-start waits for a GPS fix and for a mission (preloaded or uploaded).
+                if self._auto_start and self.flight.gps_has_fix and self.flight.has_mission:
                     self._auto_start = False
                     self._start_by_itself()
                 for when_s, msg in self.flight.drain_events():

@@ -13,7 +13,6 @@ from acquisition.simulator.server import (
     SimulatedVehicle,
     serve,
 )
-from planner.errors import InputError
 from planner.mission import Autopilot, Mission, VehicleType
 
 _PERCENT = click.FloatRange(0.0, 100.0)
@@ -108,7 +107,8 @@ _PERCENT = click.FloatRange(0.0, 100.0)
 @click.option(
     "--auto-start",
     is_flag=True,
-    help="Arm and start the mission by itself once the GPS has a fix (needs a mission).",
+    help="Arm and start the mission by itself once the GPS has a fix and a mission is stored "
+    "(preloaded with --mission or uploaded later).",
 )
 @click.option(
     "--until-landed", is_flag=True, help="Stop once the vehicle has flown and landed (for scripts)."
@@ -147,8 +147,6 @@ def command(
         from planner.formats import read_mission
 
         mission = read_mission(mission_path)
-    if auto_start and mission is None:
-        raise InputError("--auto-start needs a mission to fly: give one with --mission FILE")
     faults = FaultConfig(
         loss_pct=loss_pct,
         duplicate_pct=duplicate_pct,
