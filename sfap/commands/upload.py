@@ -1,0 +1,233 @@
+"""``sfap upload``: send a .plan/.waypoints mission to an autopilot and prove it arrived whole.
+
+Also home of the link options that ``upload``, ``download`` and ``clear`` share (defined once).
+"""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any, TypeVar
+
+import click
+
+from acquisition.errors import LinkError
+from acquisition.link import SIGNING_KEY_ENV, Link, load_signing_key
+from acquisition.transfer import (
+    DEFAULT_RETRIES,
+    DEFAULT_TIMEOUT_S,
+    MissionVerificationError,
+    TransferPhase,
+    upload_mission,
+)
+from planner.errors import MissionFileError, MissionValidationError
+from planner.mission import validate_mission
+
+from ..common import echo_json, echo_table, json_option, progress
+
+F = TypeVar("F", bound=Callable[..., Any])
+
+_PHASE_LABELS = {
+    TransferPhase.UPLOAD: "uploading ",
+    TransferPhase.VERIFY: "verifying ",
+    TransferPhase.DOWNLOAD: "downloading",
+    TransferPhase.CLEAR: "clearing  ",
+}
+
+
+def link_options(function: F) -> F:
+    """--connect, signing, and the protocol's timeouts: the options of every vehicle command."""
+    options = [
+        click.option(
+            "--connect",
+            "url",
+            required=True,
+            metavar="URL",
+            help=(
+                "How to reach the vehicle: serial:///dev/ttyUSB0:57600, udpin://0.0.0.0:14550, "
+                "udpout://HOST:PORT, tcp://HOST:PORT or tcpin://HOST:PORT."
+            ),
+        ),
+        click.option(
+            "--signing-key",
+            "signing_key_file",
+            type=click.Path(dir_okay=False, path_type=Path),
+            default=None,
+            help=(
+                "MAVLink 2 signing key file: 32 raw bytes, 64 hex digits, or a passphrase "
+                f"(SHA-256, as MAVProxy). Default: ${SIGNING_KEY_ENV} if set, else no signing."
+            ),
+        ),
+        click.option(
+            "--require-signing",
+            is_flag=True,
+            help="Refuse unsigned messages from the vehicle (needs a key).",
+        ),
+        click.option(
+            "--timeout-s",
+            type=click.FloatRange(min=0.01),
+            default=DEFAULT_TIMEOUT_S,
+            show_default=True,
+            help="Seconds to wait for the vehicle before repeating a mission message.",
+        ),
+        click.option(
+            "--retries",
+            type=click.IntRange(min=0),
+            default=DEFAULT_RETRIES,
+            show_default=True,
+            help="How many times a mission message is repeated before giving up.",
+        ),
+        click.option(
+            "--heartbeat-timeout-s",
+            type=click.FloatRange(min=0.1),
+            default=10.0,
+            show_default=True,
+            help="Seconds to wait for the vehicle's heartbeat when connecting.",
+        ),
+    ]
+    for option in reversed(options):
+        function = option(function)
+    return function
+
+
+def open_link(
+    url: str,
+    signing_key_file: Path | None,
+    require_signing: bool,
+    heartbeat_timeout_s: float,
+    *,
+    nothing_sent_note: str = "",
+) -> Link:
+    """Open the link of the link options; ``nothing_sent_note`` is added to a failure."""
+    try:
+        key = load_signing_key(signing_key_file)
+        return Link.open(
+            url,
+            heartbeat_timeout_s=heartbeat_timeout_s,
+            signing_key=key,
+            require_signing=require_signing,
+        )
+    except LinkError as error:
+        if nothing_sent_note:
+            raise LinkError(f"{error}. {nothing_sent_note}") from error
+        raise
+
+
+class ProgressBars:
+    """Turns the library's progress(phase, done, total) into one stderr bar per phase."""
+
+    def __init__(self, enabled: bool = True) -> None:
+        self.enabled = enabled
+        self._stack = contextlib.ExitStack()
+        self._phase: TransferPhase | None = None
+        self._done = 0
+        self._advance: Callable[[int], None] = lambda n: None
+
+    def __call__(self, phase: TransferPhase, done: int, total: int) -> None:
+        if phase is not self._phase:
+            self._stack.close()
+            self._stack = contextlib.ExitStack()
+            self._advance = self._stack.enter_context(
+                progress(_PHASE_LABELS.get(phase, str(phase)), total, self.enabled)
+            )
+            self._phase = phase
+            self._done = 0
+        if done > self._done:
+            self._advance(done - self._done)
+            self._done = done
+
+    def close(self) -> None:
+        self._stack.close()
+
+
+@contextlib.contextmanager
+def progress_bars(enabled: bool = True) -> Iterator[ProgressBars]:
+    bars = ProgressBars(enabled)
+    try:
+        yield bars
+    finally:
+        bars.close()
+
+
+@click.command("upload")
+@click.argument("mission_file", type=click.Path(dir_okay=False, path_type=Path))
+@link_options
+@click.option(
+    "--max-alt-m",
+    type=float,
+    default=None,
+    help="The vehicle's altitude limit in metres above home; higher items are refused before "
+    "anything is sent. Default: no limit.",
+)
+@json_option
+def command(
+    mission_file: Path,
+    url: str,
+    signing_key_file: Path | None,
+    require_signing: bool,
+    timeout_s: float,
+    retries: int,
+    heartbeat_timeout_s: float,
+    max_alt_m: float | None,
+    as_json: bool,
+) -> None:
+    """Upload MISSION_FILE (.plan or .waypoints) to a vehicle, read it back and verify it.
+
+    Exits 0 only when every item read back matches what was sent (latitude and longitude to
+    the degE7 unit, parameters to float32); otherwise it lists the items that differ, says what
+    the vehicle now holds, and exits 1.
+
+    Example: sfap upload out/gully/mission.plan --connect serial:///dev/ttyUSB0:57600
+    """
+    nothing_sent = "Nothing was sent: the vehicle's mission is unchanged."
+    from planner.formats import read_mission
+
+    try:
+        mission = read_mission(mission_file)
+    except MissionFileError as error:
+        raise MissionFileError(f"{error}. {nothing_sent}") from error
+    try:
+        validate_mission(mission, max_alt_rel_home_m=max_alt_m)
+    except MissionValidationError as error:
+        raise MissionValidationError(f"{error}\n{nothing_sent}") from error
+    with (
+        open_link(
+            url,
+            signing_key_file,
+            require_signing,
+            heartbeat_timeout_s,
+            nothing_sent_note=nothing_sent,
+        ) as link,
+        progress_bars() as bars,
+    ):
+        try:
+            result = upload_mission(
+                link,
+                mission,
+                progress=bars,
+                timeout_s=timeout_s,
+                retries=retries,
+                max_alt_rel_home_m=max_alt_m,
+            )
+        except MissionVerificationError as error:
+            bars.close()
+            if as_json:
+                echo_json(error.result.to_dict())
+            raise
+    if as_json:
+        echo_json(result.to_dict())
+        return
+    rows = [
+        ("file", str(mission_file)),
+        ("vehicle", f"{result.autopilot.value} on {result.url}"),
+        (
+            "items",
+            f"{result.items} (+ home)" if result.items_sent > result.items else str(result.items),
+        ),
+        ("upload", f"{result.upload_s:.1f} s ({result.items_resent} items sent again)"),
+        ("read-back", f"{result.verify_s:.1f} s, every item matches"),
+        ("state", result.state.value),
+    ]
+    rows += [("note", note) for note in result.notes]
+    echo_table(rows, title="Mission uploaded and verified")

@@ -1,0 +1,215 @@
+"""`sfap upload`, `sfap download` and `sfap clear` through the real CLI group, against the
+simulated vehicle: exit codes, what the user reads, and the files written."""
+
+from __future__ import annotations
+
+import json
+import socket
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+
+from acquisition.simulator.server import FaultConfig, SimulatedVehicle
+from planner.formats import read_mission
+from planner.formats.qgc_plan import write_plan
+from planner.formats.waypoints import write_waypoints
+from planner.mission import Autopilot, HomePosition, MavCmd, MavFrame, Mission, MissionItem
+from sfap.cli import cli
+
+HOME = HomePosition(lat_deg=41.6488, lon_deg=-0.8891, alt_amsl_m=210.0)
+FAST = ["--timeout-s", "0.2", "--retries", "10", "--heartbeat-timeout-s", "5"]
+
+
+def mission(count: int = 12, autopilot: Autopilot = Autopilot.ARDUPILOT) -> Mission:
+    items = [
+        MissionItem.takeoff(HOME.lat_deg, HOME.lon_deg, 30.0),
+        MissionItem.cam_trigger_distance(21.5),
+    ]
+    for i in range(count - 3):
+        items.append(
+            MissionItem.waypoint(
+                HOME.lat_deg + 0.00012345678 * i, HOME.lon_deg + 0.0001 * (i % 4), 60.25, hold_s=1.0
+            )
+        )
+    items.append(MissionItem.return_to_launch())
+    return Mission(items=tuple(items), home=HOME, autopilot=autopilot)
+
+
+def sim(autopilot: Autopilot = Autopilot.ARDUPILOT, **options: object) -> SimulatedVehicle:
+    options.setdefault("boot_delay_s", 0.0)
+    options.setdefault("request_timeout_s", 0.1)
+    return SimulatedVehicle(autopilot=autopilot, **options)  # type: ignore[arg-type]
+
+
+def run(*args: str) -> tuple[int, str, str]:
+    result = CliRunner().invoke(cli, list(args))
+    if result.exception is not None and not isinstance(result.exception, SystemExit):
+        raise result.exception
+    return result.exit_code, result.stdout, result.stderr
+
+
+@pytest.mark.parametrize("autopilot", [Autopilot.ARDUPILOT, Autopilot.PX4])
+@pytest.mark.parametrize("suffix", [".plan", ".waypoints"])
+def test_upload_verified_exits_0(tmp_path: Path, autopilot: Autopilot, suffix: str) -> None:
+    path = tmp_path / f"mission{suffix}"
+    planned = mission(autopilot=autopilot)
+    (write_plan if suffix == ".plan" else write_waypoints)(planned, path)
+    with sim(autopilot) as vehicle:
+        code, out, err = run("upload", str(path), "--connect", vehicle.url_for_client, *FAST)
+        stored = vehicle.stored_mission()
+    assert code == 0, err
+    assert "Mission uploaded and verified" in out
+    assert "replaced and verified" in out
+    body = stored[1:] if autopilot is Autopilot.ARDUPILOT else stored
+    assert [i.command for i in body] == [i.command for i in planned.items]
+
+
+def test_upload_json(tmp_path: Path) -> None:
+    path = write_plan(mission(30), tmp_path / "m.plan")
+    with sim(Autopilot.PX4, faults=FaultConfig(loss_pct=10.0, seed=3), request_timeout_s=0.03) as vehicle:
+        code, out, err = run(
+            "upload",
+            str(path),
+            "--connect",
+            vehicle.url_for_client,
+            "--json",
+            *FAST,
+            "--timeout-s",
+            "0.05",
+            "--retries",
+            "30",
+        )
+    assert code == 0, err
+    data = json.loads(out)
+    assert data["verified"] is True
+    assert data["state"] == "replaced and verified"
+    assert data["items"] == 30 and data["items_sent"] == 30
+    assert data["autopilot"] == "px4" and data["differences"] == []
+
+
+def test_readback_difference_exits_1_and_lists_items(tmp_path: Path) -> None:
+    # ArduPilot keeps a gimbal id as one byte: 300 reads back 255. A real difference.
+    items = [
+        *mission(6).items[:-1],
+        MissionItem(
+            command=MavCmd.DO_GIMBAL_MANAGER_PITCHYAW,
+            frame=MavFrame.MISSION,
+            param1=-90.0,
+            param2=0.0,
+            param3=0.0,
+            param4=0.0,
+            param7=300.0,
+        ),
+        MissionItem.return_to_launch(),
+    ]
+    path = write_plan(Mission(items=tuple(items), home=HOME), tmp_path / "m.plan")
+    with sim(Autopilot.ARDUPILOT) as vehicle:
+        code, out, err = run("upload", str(path), "--connect", vehicle.url_for_client, "--json", *FAST)
+    assert code == 1
+    assert "Traceback" not in err
+    assert "item 6 (DO_GIMBAL_MANAGER_PITCHYAW, vehicle seq 6): param 7 sent 300, read back 255" in err
+    assert "DIFFERS" in err
+    data = json.loads(out)
+    assert data["verified"] is False
+    assert [(d["index"], d["field"]) for d in data["differences"]] == [(6, "param 7")]
+
+
+def test_refusing_vehicle_exits_1_with_state(tmp_path: Path) -> None:
+    path = write_plan(mission(), tmp_path / "m.plan")
+    with sim(Autopilot.PX4, faults=FaultConfig(refuse="invalid")) as vehicle:
+        code, _, err = run("upload", str(path), "--connect", vehicle.url_for_client, *FAST)
+    assert code == 1
+    assert "MAV_MISSION_INVALID" in err
+    assert "The vehicle's mission is unchanged." in err
+    assert "Traceback" not in err
+
+
+def test_not_a_mission_file(tmp_path: Path) -> None:
+    path = tmp_path / "notes.plan"
+    path.write_text("shopping list\n")
+    code, _, err = run("upload", str(path), "--connect", "tcp://127.0.0.1:9")
+    assert code == 2  # bad input file: usage (sfap.cli maps InputError to 2)
+    assert "not a mission file" in err
+    assert "mission is unchanged" in err
+
+
+def test_mission_over_the_altitude_limit_is_not_sent(tmp_path: Path) -> None:
+    path = write_plan(mission(), tmp_path / "m.plan")
+    code, _, err = run("upload", str(path), "--connect", "tcp://127.0.0.1:9", "--max-alt-m", "50")
+    assert code == 1
+    assert "exceeds the vehicle limit 50.0 m" in err
+    assert "Nothing was sent" in err
+
+
+@pytest.mark.parametrize(
+    ("url", "words"),
+    [
+        ("http://127.0.0.1:5760", "valid schemes are serial, udpin, udpout, tcp, tcpin"),
+        ("serial:///dev/sfap-no-radio:57600", "does not exist"),
+    ],
+)
+def test_bad_connection_exits_1(tmp_path: Path, url: str, words: str) -> None:
+    path = write_plan(mission(), tmp_path / "m.plan")
+    code, _, err = run("upload", str(path), "--connect", url)
+    assert code == 1
+    assert words in err
+    assert "Nothing was sent: the vehicle's mission is unchanged." in err
+    assert "Traceback" not in err
+
+
+def test_no_heartbeat_exits_1(tmp_path: Path) -> None:
+    path = write_plan(mission(), tmp_path / "m.plan")
+    with socket.socket() as server:
+        server.bind(("127.0.0.1", 0))
+        server.listen(1)
+        url = f"tcp://127.0.0.1:{server.getsockname()[1]}"
+        code, _, err = run("upload", str(path), "--connect", url, "--heartbeat-timeout-s", "0.3")
+    assert code == 1
+    assert f"no heartbeat from an autopilot on {url} within 0.3 s" in err
+
+
+@pytest.mark.parametrize(
+    ("suffix", "autopilot"),
+    [(".plan", Autopilot.ARDUPILOT), (".waypoints", Autopilot.ARDUPILOT), (".plan", Autopilot.PX4)],
+)
+def test_download_writes_a_file_that_reads_back(tmp_path: Path, suffix: str, autopilot: Autopilot) -> None:
+    planned = mission(9)
+    out_file = tmp_path / f"onboard{suffix}"
+    with sim(autopilot, gps_fix_s=0.0) as vehicle:
+        vehicle.load_mission(planned.items)
+        code, out, err = run("download", "--connect", vehicle.url_for_client, "-o", str(out_file), *FAST)
+        assert code == 0, err
+        again = run("download", "--connect", vehicle.url_for_client, "-o", str(out_file), *FAST)
+    assert again[0] == 2 and "--overwrite" in again[2]
+    assert "Mission downloaded" in out
+    got = read_mission(out_file)
+    assert [i.command for i in got.items] == [i.command for i in planned.items]
+    assert round(got.home.lat_deg, 7) == HOME.lat_deg  # PX4: from HOME_POSITION
+    assert got.home.alt_amsl_m == pytest.approx(HOME.alt_amsl_m, abs=0.01)
+    assert got.items[3].lat_deg == pytest.approx(planned.items[3].lat_deg, abs=1e-7)
+
+
+def test_download_needs_a_known_extension(tmp_path: Path) -> None:
+    code, _, err = run("download", "--connect", "tcp://127.0.0.1:9", "-o", str(tmp_path / "x.txt"))
+    assert code == 2
+    assert ".plan or .waypoints" in err
+
+
+@pytest.mark.parametrize("autopilot", [Autopilot.ARDUPILOT, Autopilot.PX4])
+def test_clear(autopilot: Autopilot) -> None:
+    with sim(autopilot) as vehicle:
+        vehicle.load_mission(mission().items)
+        code, out, err = run("clear", "--connect", vehicle.url_for_client, "--json", *FAST)
+        remaining = vehicle.stored_mission()
+    assert code == 0, err
+    assert json.loads(out)["state"] == "cleared"
+    assert len(remaining) == (1 if autopilot is Autopilot.ARDUPILOT else 0)
+
+
+def test_require_signing_without_a_key(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.delenv("SFAP_SIGNING_KEY", raising=False)
+    code, _, err = run("clear", "--connect", "tcp://127.0.0.1:9", "--require-signing")
+    assert code == 1
+    assert "--require-signing needs a key" in err
+    assert "mission is unchanged" in err
