@@ -34,7 +34,13 @@ from PIL import Image
 from acquisition import exif
 from planner.geo import LocalFrame, geodesic_distance_m
 
-GARFIELD = Path("/work/shared/data/garfield_rgb/IMG_161122_163234_0000_RGB.JPG")
+GARFIELD = (
+    Path(__file__).resolve().parents[2]
+    / "shared"
+    / "data"
+    / "garfield_rgb"
+    / "IMG_161122_163234_0000_RGB.JPG"
+)
 START_S = 1_700_000_000.0
 INTERVAL_S = 2.0
 
@@ -106,9 +112,7 @@ def main() -> None:
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     parser.add_argument("--count", type=int, default=1000)
-    parser.add_argument(
-        "--keep", type=Path, default=None, help="work folder to keep (default: temporary)"
-    )
+    parser.add_argument("--keep", type=Path, default=None, help="work folder to keep (default: temporary)")
     args = parser.parse_args()
     exiftool = shutil.which("exiftool")
     if exiftool is None:
@@ -152,12 +156,10 @@ def main() -> None:
 
     names = sorted(p.name for p in images.iterdir())
     same_sfap = sum(
-        exif.compressed_image_data(out_sfap / n) == exif.compressed_image_data(images / n)
-        for n in names
+        exif.compressed_image_data(out_sfap / n) == exif.compressed_image_data(images / n) for n in names
     )
     same_exif = sum(
-        exif.compressed_image_data(out_exif / n) == exif.compressed_image_data(images / n)
-        for n in names
+        exif.compressed_image_data(out_exif / n) == exif.compressed_image_data(images / n) for n in names
     )
     worst_m = worst_alt_m = 0.0
     for n in names:
@@ -174,10 +176,7 @@ def main() -> None:
     print(f"exiftool -geotag: {exif_s:7.2f} s  ({1000 * exif_s / len(names):.2f} ms per image)")
     print(f"speed-up (exiftool time / sfap time): {exif_s / sfap_s:.2f}x")
     print(f"pixels identical: sfap {same_sfap}/{len(names)}, exiftool {same_exif}/{len(names)}")
-    print(
-        f"largest position difference sfap vs exiftool: {worst_m:.4f} m, "
-        f"altitude {worst_alt_m:.4f} m"
-    )
+    print(f"largest position difference sfap vs exiftool: {worst_m:.4f} m, altitude {worst_alt_m:.4f} m")
     if args.keep is None:
         shutil.rmtree(work, ignore_errors=True)
 

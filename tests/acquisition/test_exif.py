@@ -14,11 +14,12 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from PIL import Image
+from shared_data import SHARED_DATA
 
 from acquisition import exif
 from acquisition.errors import GeotagError
 
-GARFIELD = Path("/work/shared/data/garfield_rgb")
+GARFIELD = SHARED_DATA / "garfield_rgb"
 GARFIELD_FIRST = GARFIELD / "IMG_161122_163234_0000_RGB.JPG"
 
 
@@ -68,9 +69,7 @@ def _dms(tag: object) -> float:
 
 
 def test_capture_time_with_subseconds_and_zone(tmp_path: Path) -> None:
-    path = make_jpeg(
-        tmp_path / "a.jpg", date_time="2024:05:17 10:11:12", sub_sec="25", zone="+02:00"
-    )
+    path = make_jpeg(tmp_path / "a.jpg", date_time="2024:05:17 10:11:12", sub_sec="25", zone="+02:00")
     tags = exif.read_tags(path)
     # 10:11:12.25 at UTC+2 is 08:11:12.25 UTC; "25" is 25 hundredths (EXIF sub-second digits).
     assert tags.capture_time_s == pytest.approx(1715933472.25, abs=1e-6)
@@ -208,9 +207,7 @@ def test_position_round_trip_property(
 ) -> None:
     folder = tmp_path_factory.mktemp("rt")
     src = make_jpeg(folder / "a.jpg")
-    data = exif.geotag_bytes(
-        src.read_bytes(), exif.GeoTag(lat_deg=lat, lon_deg=lon, alt_amsl_m=alt)
-    )
+    data = exif.geotag_bytes(src.read_bytes(), exif.GeoTag(lat_deg=lat, lon_deg=lon, alt_amsl_m=alt))
     (folder / "b.jpg").write_bytes(data)
     back = exif.read_tags(folder / "b.jpg")
     assert back.gps_lat_deg == pytest.approx(lat, abs=0.51e-5 / 3600)
@@ -270,18 +267,12 @@ def test_strip_gps_on_garfield(tmp_path: Path) -> None:
     exif.strip_gps(copy, tmp_path / "s.jpg", attitude=True)
     stripped = exif.read_tags(tmp_path / "s.jpg")
     assert (
-        stripped.gps_lat_deg is None
-        and stripped.gps_alt_amsl_m is None
-        and stripped.gps_time_utc_s is None
+        stripped.gps_lat_deg is None and stripped.gps_alt_amsl_m is None and stripped.gps_time_utc_s is None
     )
     assert stripped.camera_yaw_deg is None and stripped.xy_accuracy_m is None
     assert stripped.capture_time_s == exif.read_tags(copy).capture_time_s
-    assert not any(
-        k.startswith("GPS ") and k != "GPS GPSInfo" for k in _exifread(tmp_path / "s.jpg")
-    )
-    assert exif.compressed_image_data(tmp_path / "s.jpg") == exif.compressed_image_data(
-        GARFIELD_FIRST
-    )
+    assert not any(k.startswith("GPS ") and k != "GPS GPSInfo" for k in _exifread(tmp_path / "s.jpg"))
+    assert exif.compressed_image_data(tmp_path / "s.jpg") == exif.compressed_image_data(GARFIELD_FIRST)
 
 
 def test_geotag_values_are_validated() -> None:
@@ -340,7 +331,7 @@ def test_xmp_exif_gps_copies_are_updated(tmp_path: Path) -> None:
     lat = written["Xmp.exif.GPSLatitude"]
     assert lat.endswith("S") and lat.startswith("33,")
     assert float(lat[3:-1]) / 60 + 33 == pytest.approx(33.8567844, abs=1e-9)
-    assert written["Xmp.exif.GPSLongitude"].startswith("151,") and written[
-        "Xmp.exif.GPSLongitude"
-    ].endswith("W")
+    assert written["Xmp.exif.GPSLongitude"].startswith("151,") and written["Xmp.exif.GPSLongitude"].endswith(
+        "W"
+    )
     assert "Xmp.exif.GPSAltitude" not in written  # not carried before: not invented

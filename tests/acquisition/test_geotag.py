@@ -25,6 +25,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from PIL import Image
+from shared_data import SHARED_DATA
 
 from acquisition import exif, geotag, sidecars
 from acquisition.errors import GeotagError
@@ -33,8 +34,8 @@ from acquisition.telemetry.model import AttitudeTrack, CameraEvents, FlightLog, 
 from planner.errors import InputError, OutputExistsError
 from planner.geo import LocalFrame, geodesic_distance_m
 
-GARFIELD = Path("/work/shared/data/garfield_rgb")
-SITL = Path("/work/shared/data/ardupilot_sitl_plane")
+GARFIELD = SHARED_DATA / "garfield_rgb"
+SITL = SHARED_DATA / "ardupilot_sitl_plane"
 ORIGIN_LON, ORIGIN_LAT = -93.0, 42.0
 FRAME = LocalFrame.utm_for(ORIGIN_LON, ORIGIN_LAT)
 START_S = 1_700_000_000.0  # 2023-11-14T22:13:20Z
@@ -66,9 +67,7 @@ class Flight:
                     return x, y + direction * self.speed_m_s * dt, 0.0 if direction > 0 else 180.0
                 _, cx, cy, r, a0, sense = params  # turn: centre, radius, start angle, +-1
                 a = a0 + sense * self.speed_m_s * dt / r
-                heading = (
-                    math.degrees(math.atan2(-sense * math.sin(a), sense * math.cos(a))) % 360.0
-                )
+                heading = math.degrees(math.atan2(-sense * math.sin(a), sense * math.cos(a))) % 360.0
                 return cx + r * math.cos(a), cy + r * math.sin(a), heading
         raise ValueError(t)
 
@@ -97,18 +96,14 @@ def survey_flight(
         x = x0 + 2 * radius * k
         y_start = y0 if direction > 0 else y0 + length
         segments.append((t, t + length / speed, (0.0, x, y_start, direction)))
-        event_t += [
-            t + (spacing / 2 + spacing * i) / speed + rng.normal(0, 0.02) for i in range(per_line)
-        ]
+        event_t += [t + (spacing / 2 + spacing * i) / speed + rng.normal(0, 0.02) for i in range(per_line)]
         t += length / speed
         if k < lines - 1:
             y_end = y_start + direction * length
             # Right-hand turn at the top (clockwise), left-hand at the bottom, both toward +x.
             a0 = math.pi  # the turn starts at the line's end, west of the turn centre
             sense = -1.0 if direction > 0 else 1.0
-            segments.append(
-                (t, t + math.pi * radius / speed, (1.0, x + radius, y_end, radius, a0, sense))
-            )
+            segments.append((t, t + math.pi * radius / speed, (1.0, x + radius, y_end, radius, a0, sense)))
             t += math.pi * radius / speed
     flight = Flight(
         log=FlightLog(path="synthetic", format="tlog"),
@@ -122,9 +117,7 @@ def survey_flight(
     sample_t = sample_t[(sample_t >= segments[0][0]) & (sample_t <= segments[-1][1])]
     xyh = np.array([flight.xy_at(float(s)) for s in sample_t])
     lon, lat = FRAME.to_lonlat(xyh[:, 0], xyh[:, 1])
-    in_turn = np.array(
-        [any(s0 < s < s1 and p[0] == 1.0 for s0, s1, p in segments) for s in sample_t]
-    )
+    in_turn = np.array([any(s0 < s < s1 and p[0] == 1.0 for s0, s1, p in segments) for s in sample_t])
     positions = PositionTrack(
         time_utc_s=sample_t,
         lat_deg=lat,
@@ -150,9 +143,7 @@ def survey_flight(
         lon_deg=elon,
         source="synthetic",
     )
-    log = FlightLog(
-        path="synthetic", format="tlog", events=events, positions=positions, attitudes=attitudes
-    )
+    log = FlightLog(path="synthetic", format="tlog", events=events, positions=positions, attitudes=attitudes)
     return replace(flight, log=log, event_xy=exy)
 
 
@@ -311,12 +302,8 @@ def test_matcher_property_random_surveys(seed: int, offset_s: float, interval_s:
             t += interval_s * (1 + rng.normal(0, 0.01))
         t += rng.uniform(6.0, 20.0)
     e = np.array(events)
-    dropped = set(
-        rng.choice(e.size, size=int(rng.integers(0, e.size // 10 + 1)), replace=False).tolist()
-    )
-    frames = [
-        (float(e[j] + offset_s + rng.normal(0, 0.03)), j) for j in range(e.size) if j not in dropped
-    ]
+    dropped = set(rng.choice(e.size, size=int(rng.integers(0, e.size // 10 + 1)), replace=False).tolist())
+    frames = [(float(e[j] + offset_s + rng.normal(0, 0.03)), j) for j in range(e.size) if j not in dropped]
     for j in rng.choice(e.size - 1, size=int(rng.integers(0, 3)), replace=False):
         gap = e[j + 1] - e[j]
         frames.append((float(e[j] + offset_s + gap * rng.uniform(0.4, 0.6)), -1))
@@ -414,9 +401,7 @@ def test_slerp_moves_at_constant_rate_along_the_short_arc(
 
 
 def test_slerp_wraps_yaw_through_north() -> None:
-    q = geotag.slerp(
-        geotag.quat_from_euler_deg(350, 0, 0), geotag.quat_from_euler_deg(10, 0, 0), [0.5]
-    )
+    q = geotag.slerp(geotag.quat_from_euler_deg(350, 0, 0), geotag.quat_from_euler_deg(10, 0, 0), [0.5])
     yaw, _, _ = geotag.euler_deg_from_quat(q)
     assert min(float(yaw[0]), 360 - float(yaw[0])) == pytest.approx(0.0, abs=1e-9)
 
@@ -430,9 +415,7 @@ def test_camera_attitude_with_gimbal() -> None:
     y, p, r = geotag.camera_attitude_deg(vehicle, ([45.0], [-90.0], [0.0]), geotag.GimbalMode.EARTH)
     assert (float(y[0]), float(p[0]), float(r[0])) == pytest.approx((45.0, 0.0, 0.0), abs=1e-9)
     # Stabilized: the gimbal yaw is relative to the nose.
-    y, p, _ = geotag.camera_attitude_deg(
-        vehicle, ([15.0], [-80.0], [0.0]), geotag.GimbalMode.STABILIZED
-    )
+    y, p, _ = geotag.camera_attitude_deg(vehicle, ([15.0], [-80.0], [0.0]), geotag.GimbalMode.STABILIZED)
     assert (float(y[0]), float(p[0])) == pytest.approx((45.0, 10.0), abs=1e-9)
     # Body: the gimbal turns with the airframe; pitch -90 on a 10 deg nose-up vehicle -> 10 deg.
     y, p, _ = geotag.camera_attitude_deg(
@@ -457,9 +440,7 @@ def test_interpolation_on_a_straight_line(flight: Flight) -> None:
         assert pose.position_gap_s == pytest.approx(0.1, abs=1e-6)
         assert pose.speed_m_s == pytest.approx(10.0, rel=1e-3)
         assert pose.yaw_deg is not None and pose.pitch_deg == pytest.approx(3.0)
-        assert (
-            min(abs(pose.yaw_deg - 0.0), abs(pose.yaw_deg - 180.0), abs(pose.yaw_deg - 360)) < 1e-6
-        )
+        assert min(abs(pose.yaw_deg - 0.0), abs(pose.yaw_deg - 180.0), abs(pose.yaw_deg - 360)) < 1e-6
 
 
 def test_interpolation_outside_and_in_gaps(flight: Flight) -> None:
@@ -553,29 +534,21 @@ def test_geotag_synthetic_survey(
         assert row.lat_deg == pytest.approx(by_name[row.name].lat_deg, abs=1e-9)
         assert row.yaw_deg is not None and row.xy_accuracy_m is not None
     pix4d = sidecars.read_pix4d_csv(tmp_path / "out" / "pix4d_geolocation.csv")
-    assert [(r.name, round(r.lon_deg, 9)) for r in pix4d] == [
-        (r.name, round(r.lon_deg, 9)) for r in rows
-    ]
+    assert [(r.name, round(r.lon_deg, 9)) for r in pix4d] == [(r.name, round(r.lon_deg, 9)) for r in rows]
     features = json.loads((tmp_path / "out" / "cameras.geojson").read_text())["features"]
     assert len(features) == len(names) and features[0]["geometry"]["type"] == "Point"
     report = json.loads((tmp_path / "out" / "geotag_report.json").read_text())
     assert report["summary"]["extra_frames"] == [spurious]
-    assert [e["seq"] for e in report["summary"]["unmatched_events"]] == [
-        int(events.seq[j]) for j in DROPPED
-    ]
+    assert [e["seq"] for e in report["summary"]["unmatched_events"]] == [int(events.seq[j]) for j in DROPPED]
 
 
 def test_geotag_by_time_without_events(tmp_path: Path, flight: Flight) -> None:
     events = flight.log.events
     assert events is not None
-    times = (
-        events.time_utc_s[::3] + TRUE_OFFSET_S + np.random.default_rng(4).normal(0, JITTER_S, 20)
-    )
+    times = events.time_utc_s[::3] + TRUE_OFFSET_S + np.random.default_rng(4).normal(0, JITTER_S, 20)
     write_frames(tmp_path / "card", times)
     track_only = replace(flight.log, events=None)
-    result = geotag.geotag_images(
-        tmp_path / "card", track_only, tmp_path / "out", offset_s=TRUE_OFFSET_S
-    )
+    result = geotag.geotag_images(tmp_path / "card", track_only, tmp_path / "out", offset_s=TRUE_OFFSET_S)
     assert result.offset_source is OffsetSource.GIVEN and not result.untagged
     for k, frame in enumerate(sorted(result.frames, key=lambda f: f.name)):
         assert frame.status is FrameStatus.BY_TIME
@@ -673,9 +646,7 @@ def test_log_from_another_day(
         geotag.geotag_images(card, other.log, tmp_path / "out")
     assert not (tmp_path / "out").exists()
     # A track only (no events): every frame lies outside the log; all listed, none written.
-    result = geotag.geotag_images(
-        card, replace(other.log, events=None), tmp_path / "out2", offset_s=0.0
-    )
+    result = geotag.geotag_images(card, replace(other.log, events=None), tmp_path / "out2", offset_s=0.0)
     assert len(result.untagged) == len(result.frames)
     assert all("before the log" in str(f.message) for f in result.untagged)
     assert any("another flight or day" in w for w in result.warnings)
@@ -709,9 +680,7 @@ def test_event_positions_used_when_the_track_is_missing(tmp_path: Path, flight: 
     matched = [f for f in result.frames if f.status is FrameStatus.MATCHED]
     assert len(matched) == len(truth) - 1 and all(f.position_source == "event" for f in matched)
     extra = [f for f in result.frames if f.status is FrameStatus.EXTRA]
-    assert [f.name for f in extra] == list(result.extra_frames) and "no camera event" in str(
-        extra[0].message
-    )
+    assert [f.name for f in extra] == list(result.extra_frames) and "no camera event" in str(extra[0].message)
 
 
 # ========================================================================= garfield (real frames)
@@ -750,9 +719,7 @@ def _garfield_track(originals: list[exif.ImageTags], *, gps_time: bool) -> Fligh
     )
 
 
-def test_garfield_tags_recreated(
-    tmp_path: Path, garfield: tuple[Path, list[exif.ImageTags]]
-) -> None:
+def test_garfield_tags_recreated(tmp_path: Path, garfield: tuple[Path, list[exif.ImageTags]]) -> None:
     """Strip GPS and attitude from copies of the 28 real frames, build a track from the original
     tags keyed by capture time, geotag the copies by time, compare with the originals."""
     card, originals = garfield
@@ -767,9 +734,7 @@ def test_garfield_tags_recreated(
         out = tmp_path / "out" / original.name
         lat, lon, alt = _exifread_position(out)
         assert original.gps_lat_deg is not None and original.gps_lon_deg is not None
-        worst_m = max(
-            worst_m, geodesic_distance_m(lat, lon, original.gps_lat_deg, original.gps_lon_deg)
-        )
+        worst_m = max(worst_m, geodesic_distance_m(lat, lon, original.gps_lat_deg, original.gps_lon_deg))
         worst_alt_m = max(worst_alt_m, abs(alt - (original.gps_alt_amsl_m or 0.0)))
         back = exif.read_tags(out)
         assert back.camera_yaw_deg is not None and original.camera_yaw_deg is not None
@@ -777,9 +742,7 @@ def test_garfield_tags_recreated(
             worst_yaw_deg, abs((back.camera_yaw_deg - original.camera_yaw_deg + 180) % 360 - 180)
         )
         assert back.camera_pitch_deg == pytest.approx(original.camera_pitch_deg, abs=1e-5)
-        assert exif.compressed_image_data(out) == exif.compressed_image_data(
-            GARFIELD / original.name
-        )
+        assert exif.compressed_image_data(out) == exif.compressed_image_data(GARFIELD / original.name)
     # Originals carry seconds to 1e-4 s (3 mm); ours to 1e-5 s: the difference is rounding only.
     assert worst_m < 0.005, worst_m
     assert worst_alt_m < 0.0005 and worst_yaw_deg < 1e-4
@@ -803,9 +766,7 @@ def test_garfield_from_gps_time_track_with_offset(
         f = next(fr for fr in result.frames if fr.name == original.name)
         assert f.lat_deg is not None and f.lon_deg is not None
         errors.append(
-            geodesic_distance_m(
-                f.lat_deg, f.lon_deg, original.gps_lat_deg or 0, original.gps_lon_deg or 0
-            )
+            geodesic_distance_m(f.lat_deg, f.lon_deg, original.gps_lat_deg or 0, original.gps_lon_deg or 0)
         )
     assert max(errors) < 1.0, max(errors)
 
@@ -822,9 +783,7 @@ def test_pycolmap_creates_a_position_prior_for_every_tagged_frame(
     for original in originals:
         shutil.copy(stripped / original.name, card / original.name)
     log = _garfield_track(originals, gps_time=False)
-    geotag.geotag_images(
-        card, log, tmp_path / "out", offset_s=0.0, options=GeotagOptions(max_gap_s=120.0)
-    )
+    geotag.geotag_images(card, log, tmp_path / "out", offset_s=0.0, options=GeotagOptions(max_gap_s=120.0))
     images = tmp_path / "images"
     images.mkdir()
     for p in (tmp_path / "out").glob("*.JPG"):
@@ -834,9 +793,7 @@ def test_pycolmap_creates_a_position_prior_for_every_tagged_frame(
     options.sift.max_num_features = 256
     options.use_gpu = False
     database = tmp_path / "db.db"
-    pycolmap.extract_features(
-        database, images, extraction_options=options, device=pycolmap.Device.cpu
-    )
+    pycolmap.extract_features(database, images, extraction_options=options, device=pycolmap.Device.cpu)
     db = pycolmap.Database.open(database)
     try:
         priors = db.read_all_pose_priors()

@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from shared_data import SHARED_DATA
 
 from acquisition.errors import TelemetryError
 from acquisition.telemetry import FORMATS, detect_format, read_log
@@ -36,7 +37,7 @@ from acquisition.telemetry.mrk import read_mrk_table
 from acquisition.telemetry.tlog import euler_deg_from_quaternion
 from acquisition.telemetry.tracks import parse_angle_deg
 
-REAL = Path("/work/shared/data/ardupilot_sitl_plane")
+REAL = SHARED_DATA / "ardupilot_sitl_plane"
 TLOG = REAL / "flight.tlog"
 BIN = REAL / "flight.BIN"
 DATA = Path(__file__).resolve().parents[1] / "data"
@@ -109,9 +110,7 @@ def test_real_tlog_reads_70_feedback_events_in_utc(tlog: FlightLog) -> None:
     assert day < ev.time_utc_s[0] < ev.time_utc_s[-1] < day + 86_400
     assert ev.lat_deg is not None and ev.lon_deg is not None
     assert np.all(np.abs(ev.lat_deg - 42.0) < 0.01) and np.all(np.abs(ev.lon_deg + 93.0) < 0.01)
-    assert ev.alt_rel_home_m is not None and np.median(ev.alt_rel_home_m) == pytest.approx(
-        80, abs=5
-    )
+    assert ev.alt_rel_home_m is not None and np.median(ev.alt_rel_home_m) == pytest.approx(80, abs=5)
     _assert_ordered(tlog)
 
 
@@ -157,10 +156,7 @@ def test_dataflash_event_time_is_after_its_last_gps_fix(dataflash: FlightLog) ->
     # Independent GPS -> UTC: the datetime module and the 18 s of 2017 onwards.
     fix_utc = np.array(
         [
-            (
-                dt.datetime(1980, 1, 6, tzinfo=dt.UTC) + dt.timedelta(weeks=w, milliseconds=ms)
-            ).timestamp()
-            - 18
+            (dt.datetime(1980, 1, 6, tzinfo=dt.UTC) + dt.timedelta(weeks=w, milliseconds=ms)).timestamp() - 18
             for w, ms in fix
         ]
     )
@@ -216,15 +212,11 @@ def test_corrupt_tlog_skips_garbage_and_says_where(tmp_path: Path, tlog: FlightL
     (tmp_path / "bad.tlog").write_bytes(data[:at] + b"\x55" * 200 + data[at:])
     log = read_log(tmp_path / "bad.tlog")
     assert log.events is not None and len(log.events) == 70
-    assert any(
-        f"corrupt MAVLink packets skipped, the first after byte {at}" in w for w in log.warnings
-    )
+    assert any(f"corrupt MAVLink packets skipped, the first after byte {at}" in w for w in log.warnings)
 
 
 @needs_real
-def test_truncated_dataflash_keeps_events_before_the_cut(
-    tmp_path: Path, dataflash: FlightLog
-) -> None:
+def test_truncated_dataflash_keeps_events_before_the_cut(tmp_path: Path, dataflash: FlightLog) -> None:
     data = BIN.read_bytes()
     cut = len(data) // 2
     (tmp_path / "cut.bin").write_bytes(data[:cut])
@@ -300,9 +292,7 @@ def _synthetic_tlog(path: Path, events: list[tuple[str, float]]) -> None:
         lat = round((47.0 + 1e-5 * boot) * 1e7)
         out += _record(
             mav,
-            mav.global_position_int_encode(
-                boot_ms, lat, 80_000_000, 400_000, 50_000, 0, 0, 0, 9000
-            ),
+            mav.global_position_int_encode(boot_ms, lat, 80_000_000, 400_000, 50_000, 0, 0, 0, 9000),
             rx,
         )
         if k % 10 == 0:
@@ -354,8 +344,7 @@ def test_tlog_time_usec_boot_unix_and_gps_epoch_all_land_on_utc(tmp_path: Path) 
     _close(ev.time_utc_s, expected, atol=2e-6)
     assert any("GPS-epoch" in w for w in log.warnings)
     assert any(
-        "other sources than the vehicle 1/1 ignored (system/component: 2/1 (201))" in w
-        for w in log.warnings
+        "other sources than the vehicle 1/1 ignored (system/component: 2/1 (201))" in w for w in log.warnings
     )
     # Poses are on UTC through SYSTEM_TIME, not the ground station's clock (3.7 s ahead).
     assert log.attitudes is not None
@@ -399,9 +388,7 @@ def test_tlog_image_captured_and_failed_captures(tmp_path: Path) -> None:
     assert ev.alt_amsl_m is not None and ev.alt_amsl_m[0] == pytest.approx(512.34)
     assert ev.alt_rel_home_m is not None and ev.alt_rel_home_m[0] == pytest.approx(80.12)
     assert ev.roll_deg is not None and ev.pitch_deg is not None and ev.yaw_deg is not None
-    assert (ev.roll_deg[0], ev.pitch_deg[0], ev.yaw_deg[0]) == pytest.approx(
-        (3.0, -4.0, 250.0), abs=1e-4
-    )
+    assert (ev.roll_deg[0], ev.pitch_deg[0], ev.yaw_deg[0]) == pytest.approx((3.0, -4.0, 250.0), abs=1e-4)
     assert any("failed capture" in w for w in log.warnings)
 
 
@@ -418,9 +405,7 @@ def test_quaternion_to_euler_round_trip(roll: float, pitch: float, yaw: float) -
 
 
 def _ulog_fixture_module() -> ModuleType:
-    spec = importlib.util.spec_from_file_location(
-        "make_ulog_fixture", DATA / "make_ulog_fixture.py"
-    )
+    spec = importlib.util.spec_from_file_location("make_ulog_fixture", DATA / "make_ulog_fixture.py")
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
@@ -540,9 +525,7 @@ def test_csv_errors_name_the_line(tmp_path: Path) -> None:
     (tmp_path / "c.csv").write_text("GPSDateTime,GPSLatitude,Lon\n2020:01:01 00:00:00Z,10,20\n")
     with pytest.raises(TelemetryError, match=r"c\.csv, line 1: the header lacks GPSLongitude"):
         read_log(tmp_path / "c.csv")
-    (tmp_path / "d.csv").write_text(
-        good + "2020:01:01 00:00:01Z,10,20,\n2020:01:01 00:00:02Z,91,20\n"
-    )
+    (tmp_path / "d.csv").write_text(good + "2020:01:01 00:00:01Z,10,20,\n2020:01:01 00:00:02Z,91,20\n")
     with pytest.raises(TelemetryError, match=r"line 4: .*outside"):
         read_log(tmp_path / "d.csv")
 
@@ -559,7 +542,9 @@ def test_csv_split_date_and_time_and_below_sea_level(tmp_path: Path) -> None:
 
 
 def test_gpx_errors_name_the_line(tmp_path: Path) -> None:
-    head = '<?xml version="1.0"?>\n<gpx version="1.1" xmlns="http://www.topografix.com/GPX/1/1"><trk><trkseg>\n'
+    head = (
+        '<?xml version="1.0"?>\n<gpx version="1.1" xmlns="http://www.topografix.com/GPX/1/1"><trk><trkseg>\n'
+    )
     (tmp_path / "a.gpx").write_text(
         head + '<trkpt lat="1" lon="2">\n<time>yesterday</time></trkpt>\n</trkseg></trk></gpx>\n'
     )
@@ -570,9 +555,7 @@ def test_gpx_errors_name_the_line(tmp_path: Path) -> None:
     )
     with pytest.raises(TelemetryError, match=r"b\.gpx, line 3: trkpt without <time>"):
         read_log(tmp_path / "b.gpx")
-    (tmp_path / "c.gpx").write_text(
-        head + '<trkpt lat="1" lon="2">\n<time>2020-01-01T00:00:00Z</trkpt>\n'
-    )
+    (tmp_path / "c.gpx").write_text(head + '<trkpt lat="1" lon="2">\n<time>2020-01-01T00:00:00Z</trkpt>\n')
     with pytest.raises(TelemetryError, match=r"c\.gpx, line 4: not well-formed"):
         read_log(tmp_path / "c.gpx")
 
@@ -654,9 +637,7 @@ def test_known_gps_times() -> None:
     g = float(utc_to_gps_s(_utc(2017, 1, 1)))
     assert float(gps_to_utc_s(g - 1)) == float(gps_to_utc_s(g)) == _utc(2017, 1, 1)
     assert float(gps_to_utc_s(g - 2)) == _utc(2016, 12, 31, 23, 59, 59)
-    assert float(gps_week_ms_to_utc_s(2446, 37_953_600)) == _utc(
-        2026, 11, 22, 10, 32, 15, us=600_000
-    )
+    assert float(gps_week_ms_to_utc_s(2446, 37_953_600)) == _utc(2026, 11, 22, 10, 32, 15, us=600_000)
     assert float(gps_usec_to_utc_s(np.int64(g * 1_000_000 + 123_456))) == pytest.approx(
         _utc(2017, 1, 1) + 0.123456, abs=1e-7
     )
@@ -741,9 +722,7 @@ class _DataFlashWriter:
         mtype = 129 + len(self.types)
         length = 3 + struct.calcsize("<" + "".join(_DF_STRUCT[c] for c in fmt))
         self.types[name] = (mtype, fmt, columns.split(","))
-        body = struct.pack(
-            "<BB4s16s64s", mtype, length, name.encode(), fmt.encode(), columns.encode()
-        )
+        body = struct.pack("<BB4s16s64s", mtype, length, name.encode(), fmt.encode(), columns.encode())
         self.out += b"\xa3\x95\x80" + body
 
     def msg(self, name: str, **values: float) -> None:
@@ -766,12 +745,8 @@ def _df_utc(boot_s: float) -> float:
 def _df_flight(w: _DataFlashWriter, *, with_gpa: bool) -> None:
     """GPS fixes at 5 Hz received at boot time t (GPA SMS = t), logged 17 ms later when GPA is
     there; ATT at 10 Hz, yaw 200 deg."""
-    w.fmt(
-        "GPS", "QBBIHBcLLeffffB", "TimeUS,I,Status,GMS,GWk,NSats,HDop,Lat,Lng,Alt,Spd,GCrs,VZ,Yaw,U"
-    )
-    w.fmt(
-        "GPA", "QBCCCCfBIHfHH", "TimeUS,I,VDop,HAcc,VAcc,SAcc,YAcc,VV,SMS,Delta,Und,RTCMFU,RTCMFD"
-    )
+    w.fmt("GPS", "QBBIHBcLLeffffB", "TimeUS,I,Status,GMS,GWk,NSats,HDop,Lat,Lng,Alt,Spd,GCrs,VZ,Yaw,U")
+    w.fmt("GPA", "QBCCCCfBIHfHH", "TimeUS,I,VDop,HAcc,VAcc,SAcc,YAcc,VV,SMS,Delta,Und,RTCMFU,RTCMFD")
     w.fmt("ATT", "QccccCCCCB", "TimeUS,DesRoll,Roll,DesPitch,Pitch,DesYaw,Yaw,ErrRP,ErrYaw,AEKF")
     zeros = dict.fromkeys(("NSats", "HDop", "Spd", "GCrs", "VZ", "Yaw", "U", "I"), 0.0)
     for k in range(5, 150):
@@ -884,9 +859,7 @@ def test_tlog_mount_status_yaw_is_made_earth_frame(tmp_path: Path) -> None:
         rx = round((UTC_AT_BOOT + boot_ms / 1000 + GCS_CLOCK_AHEAD_S) * 1e6)
         yaw = np.radians(350.0 + 0.4 * k)  # the vehicle turns through north
         out += _record(mav, mav.attitude_encode(boot_ms, 0.0, 0.0, yaw, 0, 0, 0), rx)
-        out += _record(
-            mav, mav.system_time_encode(round((UTC_AT_BOOT + boot_ms / 1000) * 1e6), boot_ms), rx
-        )
+        out += _record(mav, mav.system_time_encode(round((UTC_AT_BOOT + boot_ms / 1000) * 1e6), boot_ms), rx)
         out += _record(mav, mav.mount_status_encode(0, 0, -9000, 150, 2500), rx)
     (tmp_path / "m.tlog").write_bytes(bytes(out))
     log = read_log(tmp_path / "m.tlog")

@@ -14,14 +14,15 @@ import pyexiv2
 import pytest
 from click.testing import CliRunner
 from PIL import Image
+from shared_data import SHARED_DATA
 
 from acquisition import exif
 from acquisition.telemetry import read_log
 from acquisition.telemetry.model import FlightLog
 from sfap.cli import cli
 
-SITL_TLOG = Path("/work/shared/data/ardupilot_sitl_plane/flight.tlog")
-SITL_BIN = Path("/work/shared/data/ardupilot_sitl_plane/flight.BIN")  # the same flight's DataFlash
+SITL_TLOG = SHARED_DATA / "ardupilot_sitl_plane" / "flight.tlog"
+SITL_BIN = SHARED_DATA / "ardupilot_sitl_plane" / "flight.BIN"  # the same flight's DataFlash
 OFFSET_S = -3600.0 + 12.75  # a camera set to the wrong time zone, and 12.75 s off
 DROPPED = (5, 6, 50)
 
@@ -108,9 +109,7 @@ def test_geotag_real_tlog_names_dropped_and_extra(
     assert tagged == sorted(p.name for p in sitl_card.iterdir())
     first = exif.read_tags(out / tagged[0])
     assert first.gps_lat_deg is not None and first.camera_yaw_deg is not None
-    assert exif.compressed_image_data(out / tagged[0]) == exif.compressed_image_data(
-        sitl_card / tagged[0]
-    )
+    assert exif.compressed_image_data(out / tagged[0]) == exif.compressed_image_data(sitl_card / tagged[0])
     assert exif.read_tags(sitl_card / tagged[0]).gps_lat_deg is None  # originals untouched
     assert (out / "geo.txt").read_text().startswith("EPSG:4326\n")
 
@@ -132,10 +131,7 @@ def test_json_output_and_untagged_exit_1(tmp_path: Path, sitl_card: Path) -> Non
     matched = [f for f in report["frames"] if f["status"] == "matched"]
     assert len(matched) == 70 - len(DROPPED)
     assert all(abs(f["time_residual_s"]) < 0.2 and f["interpolation_gap_s"] < 1.0 for f in matched)
-    assert (
-        not (tmp_path / "out" / "NOTIME.JPG").exists()
-        and not (tmp_path / "out" / "BROKEN.JPG").exists()
-    )
+    assert not (tmp_path / "out" / "NOTIME.JPG").exists() and not (tmp_path / "out" / "BROKEN.JPG").exists()
 
 
 def test_untagged_frames_are_listed_in_text(tmp_path: Path, sitl_log: FlightLog) -> None:
@@ -205,9 +201,7 @@ def test_dry_run_in_place_and_overwrite(tmp_path: Path, sitl_log: FlightLog) -> 
     for name, data in originals.items():
         assert (tmp_path / "bak" / name).read_bytes() == data
         assert exif.read_tags(tmp_path / "card" / name).gps_lat_deg is not None
-    code, _, stderr = _run(
-        "geotag", tmp_path / "card", "--log", track, "-o", out, "--offset-s", "0"
-    )
+    code, _, stderr = _run("geotag", tmp_path / "card", "--log", track, "-o", out, "--offset-s", "0")
     assert code == 2 and "--overwrite" in stderr
     code, _, stderr = _run(
         "geotag", tmp_path / "card", "--log", track, "-o", out, "--offset-s", "0", "--overwrite"

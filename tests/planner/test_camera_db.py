@@ -12,6 +12,7 @@ import exifread
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from shared_data import SHARED_DATA
 
 from planner.camera import Camera, Orientation
 from planner.camera_db import (
@@ -25,7 +26,7 @@ from planner.camera_db import (
 )
 from planner.errors import CameraError, InputError
 
-SEQUOIA_DIR = Path("/work/shared/data/garfield_rgb")
+SEQUOIA_DIR = SHARED_DATA / "garfield_rgb"
 
 #: Cameras the issue names; each must be in the database under these ids.
 REQUIRED_IDS = (
