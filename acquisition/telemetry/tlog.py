@@ -454,6 +454,13 @@ def _events(path: str, r: _Reading, clock: _Clock) -> tuple[CameraEvents | None,
 def _positions(path: str, r: _Reading, clock: _Clock) -> PositionTrack | None:
     if r.rows["GLOBAL_POSITION_INT"]:
         a = _arr(r.rows["GLOBAL_POSITION_INT"], 7)
+        if r.rows["GPS_RAW_INT"]:
+            # Before the first GPS fix the estimator's position is relative to a null origin
+            # (ArduPilot reports points near 0, 0): keep only positions from the first fix on.
+            first_fix_rx_s = min(row[0] for row in r.rows["GPS_RAW_INT"])
+            a = a[a[:, 0] >= first_fix_rx_s]
+            if len(a) == 0:
+                return None
         t = clock.utc_s(a[:, 1], a[:, 2] / 1e3)
         o = time_order(t)
         return PositionTrack(

@@ -869,3 +869,12 @@ def test_tlog_mount_status_yaw_is_made_earth_frame(tmp_path: Path) -> None:
     _close(log.gimbal.roll_deg, 1.5, atol=1e-9)
     expected = (350.0 + 0.4 * np.arange(50) + 25.0) % 360
     _close(log.gimbal.yaw_deg, expected, atol=1e-4)
+
+
+def test_tlog_positions_start_at_the_first_gps_fix() -> None:
+    # ArduPilot reports estimator positions near 0, 0 before its GPS has a fix; they are not
+    # positions of the vehicle and must not reach the geotagger.
+    log = read_log(REAL / "flight.tlog")
+    assert log.positions is not None
+    near_null_island = (np.abs(log.positions.lat_deg) < 1.0) & (np.abs(log.positions.lon_deg) < 1.0)
+    assert not near_null_island.any()
