@@ -77,6 +77,16 @@ class LocalFrame:
         x1, y1 = self.to_xy(step["lon2"], step["lat2"])
         return float(np.degrees(np.arctan2(x1 - x0, y1 - y0)))
 
+    def true_north_grid_bearing_deg_array(self, lon_deg: ArrayLike, lat_deg: ArrayLike) -> NDArray[np.float64]:
+        """:meth:`true_north_grid_bearing_deg` at many points (finite difference along the
+        meridian, 1e-5 deg = about 1 m)."""
+        lon = np.atleast_1d(np.asarray(lon_deg, float))
+        lat = np.atleast_1d(np.asarray(lat_deg, float))
+        step = np.where(lat < 89.0, 1e-5, -1e-5)
+        x0, y0 = self.to_xy(lon, lat)
+        x1, y1 = self.to_xy(lon, lat + step)
+        return np.degrees(np.arctan2((x1 - x0) * np.sign(step), (y1 - y0) * np.sign(step)))
+
     def geometry_to_xy(self, geom: BaseGeometry) -> BaseGeometry:
         """A shapely geometry in lon/lat, projected into this frame."""
         return shapely.transform(geom, lambda c: np.column_stack(self.to_xy(c[:, 0], c[:, 1])))

@@ -227,7 +227,10 @@ def project_footprints(
     n_vertices = ring_cam.shape[0]
     x, y = frame.to_xy(frames.lon_deg, frames.lat_deg)
     cam_xyz = np.column_stack([np.atleast_1d(x), np.atleast_1d(y), frames.alt_m.astype(float)])
-    rotation = world_from_camera(frames.yaw_deg, frames.pitch_deg, frames.roll_deg)
+    # Yaw is a true bearing; the frame's grid north is off true north by the meridian
+    # convergence (up to 3 deg in a UTM zone), so turn each yaw into a grid bearing.
+    grid_yaw = frames.yaw_deg + frame.true_north_grid_bearing_deg_array(frames.lon_deg, frames.lat_deg)
+    rotation = world_from_camera(grid_yaw, frames.pitch_deg, frames.roll_deg)
     if n == 0:
         rotation = np.zeros((0, 3, 3))
 

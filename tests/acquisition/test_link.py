@@ -165,7 +165,7 @@ def test_no_heartbeat_within_timeout() -> None:
         with pytest.raises(LinkError) as caught:
             Link.open(url, heartbeat_timeout_s=0.4)
         elapsed = time.monotonic() - started
-    assert 0.35 < elapsed < 2.0
+    assert 0.35 < elapsed < 5.0  # the timeout is honoured: not early, and not ignored
     message = str(caught.value)
     assert f"no heartbeat from an autopilot on {url} within 0.4 s" in message
     assert "nothing at all was received" in message

@@ -716,7 +716,8 @@ def test_serial_link_speed_bounds_the_transfer_time() -> None:
         elapsed = time.monotonic() - start
         gcs.close()
     assert ack == ACCEPTED
-    assert floor_s * 0.95 < elapsed < floor_s * 3
+    # The paced link cannot be beaten (how much slower it is, is the benchmark's business).
+    assert elapsed > floor_s * 0.95
 
 
 # --- flight (no sockets) -----------------------------------------------------------------------

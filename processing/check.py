@@ -1,0 +1,810 @@
+"""The field coverage check: will these frames (or this plan) reconstruct?
+
+:func:`run_check` projects every frame onto the ground, counts the views per ground cell over
+the area, finds the gaps, measures forward and side overlap, base-height ratios, GSD, motion
+blur and scale differences, and judges them against :class:`Thresholds`. The CLI
+(``sfap check``) calls it and exits 0 when the check passes, 1 when it fails.
+
+The area judged (``CheckResult.area_source`` says which):
+
+1. the area given (``area=``, a WGS84 polygon, e.g. from ``--area FILE``);
+2. else the plan's area (``plan=``: area.geojson of the plan folder, exclusions removed);
+3. else the block the flight spans: the convex hull of the points where the frames' optical
+   axes meet the ground. Every point inside it lies between frame centres, so a well-flown
+   block sees it several times; the outer halves of the edge frames (seen once or twice by
+   nature) are outside and are not gaps, and neither are the turns between lines, which lie
+   outside the area or are covered by the lines' frames. A concave block (an L shape) makes
+   its notch look like a gap: give the area then.
+
+The check works in metres in a transverse Mercator frame centred on the frames
+(:func:`processing.inputs.local_frame_at`), where grid north is true north: the frames' yaw
+is a true bearing, and in a UTM zone (grid north up to 3 deg off) every footprint would turn
+about its camera and open false gaps along the area's edges.
+
+Gaps are the connected parts of the area seen by no frame, smaller ones than
+``Thresholds.min_gap_area_m2`` dropped (raster crumbs along footprint edges).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import shapely
+from numpy.typing import NDArray
+from shapely.geometry import MultiPolygon, Polygon
+
+from planner.camera import Orientation
+from planner.geo import LocalFrame
+
+from .coverage import Grid
+from .errors import ProcessingError
+from .footprints import Footprints
+from .frames import AttitudeSource, Frames
+from .ground import Ground
+from .inputs import PlanInfo, frames_local_frame
+
+log = logging.getLogger(__name__)
+
+#: View counts whose area shares are reported ("seen by at least k frames").
+VIEW_LEVELS = (1, 2, 3, 5, 9)
+#: Codes of :attr:`CheckResult.stereo_class`.
+STEREO_NONE, STEREO_WEAK, STEREO_GOOD, STEREO_WIDE = -1, 0, 1, 2
+
+
+@dataclass(frozen=True, kw_only=True)
+class Thresholds:
+    """What a pass needs; every default has its source.
+
+    - ``min_seen_1_pct``: share of the area seen by at least one frame (99 %: a gap of more than
+      1 % of the area is a hole in the model).
+    - ``min_seen_3_pct``: share seen by at least three frames (90 %): SfM-MVS needs far more
+      redundancy than a stereo pair (REFERENCES.md section 1); three views are the least that
+      lets a matcher confirm a point.
+    - ``max_overlap_shortfall_pct``: the median forward and side overlap may fall this many
+      points under the plan's (10; "planned 80/80, got almost zero", REFERENCES.md section 5).
+    - ``max_blur_px``, ``max_blurred_frames_pct``: motion blur per frame above half a pixel
+      (the limit QGC and Mission Planner plan with) is a flagged frame; more than 5 % of the
+      frames flagged fails.
+    - ``min_base_height_ratio``, ``max_base_height_ratio``: the good range of a pair's B/H:
+      above 0.54 (30 deg of intersection) matching gets hard (Wenzel et al. 2013); below 0.1
+      (5.7 deg) depth precision sigma_Z = (H/B)(H/f) sigma_image is ten times worse than the
+      height error of the plan's pixel.
+    - ``min_good_pair_pct``: share of the area seen by at least one pair in that range (90 %).
+    - ``max_scale_difference_pct``: image scales differing by more than 10 % hamper matching
+      (REFERENCES.md section 1): such frames are flagged (a warning).
+    - ``max_gap_area_m2``: any gap larger than this fails, whatever the share seen (25 m2: a
+      5 m x 5 m hole in the orthomosaic is visible; a gap at the edge of a large area can be
+      well under 1 % of it).
+    - ``min_gap_area_m2``: smaller holes are not reported as gaps (crumbs of a cell or two
+      where footprint corners meet).
+    """
+
+    min_seen_1_pct: float = 99.0
+    min_seen_3_pct: float = 90.0
+    max_overlap_shortfall_pct: float = 10.0
+    max_blur_px: float = 0.5
+    max_blurred_frames_pct: float = 5.0
+    min_base_height_ratio: float = 0.1
+    max_base_height_ratio: float = 0.54
+    min_good_pair_pct: float = 90.0
+    max_scale_difference_pct: float = 10.0
+    max_gap_area_m2: float = 25.0
+    min_gap_area_m2: float = 1.0
+
+    def __post_init__(self) -> None:
+        for key in (
+            "min_seen_1_pct",
+            "min_seen_3_pct",
+            "max_overlap_shortfall_pct",
+            "max_blurred_frames_pct",
+            "min_good_pair_pct",
+            "max_scale_difference_pct",
+        ):
+            value = getattr(self, key)
+            if not (math.isfinite(value) and 0.0 <= value <= 100.0):
+                raise ProcessingError(f"threshold {key} = {value} is outside 0-100 %")
+        if not (self.max_blur_px > 0 and math.isfinite(self.max_blur_px)):
+            raise ProcessingError(f"threshold max_blur_px = {self.max_blur_px} must be positive pixels")
+        if not (0.0 < self.min_base_height_ratio < self.max_base_height_ratio):
+            raise ProcessingError(
+                f"B/H range {self.min_base_height_ratio}-{self.max_base_height_ratio} is empty; the minimum "
+                "must be positive and below the maximum"
+            )
+        if not (self.min_gap_area_m2 >= 0.0 and self.max_gap_area_m2 >= self.min_gap_area_m2):
+            raise ProcessingError(
+                f"thresholds min_gap_area_m2 = {self.min_gap_area_m2} and max_gap_area_m2 = "
+                f"{self.max_gap_area_m2} must satisfy 0 <= min <= max"
+            )
+
+    def as_dict(self) -> dict[str, float]:
+        return {key: float(getattr(self, key)) for key in self.__dataclass_fields__}
+
+
+@dataclass(frozen=True, kw_only=True)
+class Distribution:
+    """Summary of a set of values, in the unit the owning field names."""
+
+    count: int
+    min: float
+    p10: float
+    median: float
+    p90: float
+    max: float
+
+    @classmethod
+    def of(cls, values: NDArray[np.float64] | Sequence[float]) -> Distribution | None:
+        v = np.asarray(values, dtype=np.float64)
+        v = v[np.isfinite(v)]
+        if v.size == 0:
+            return None
+        p10, median, p90 = np.percentile(v, [10, 50, 90])
+        return cls(
+            count=int(v.size),
+            min=float(v.min()),
+            p10=float(p10),
+            median=float(median),
+            p90=float(p90),
+            max=float(v.max()),
+        )
+
+    def as_dict(self) -> dict[str, float | int]:
+        return {k: getattr(self, k) for k in self.__dataclass_fields__}
+
+
+@dataclass(frozen=True, kw_only=True)
+class Gap:
+    """A connected part of the area seen by no frame.
+
+    ``polygon_xy`` in the check's local frame (metres), ``polygon_lonlat`` in WGS84;
+    ``area_m2`` measured in the local frame.
+    """
+
+    index: int
+    area_m2: float
+    centroid_lon_deg: float
+    centroid_lat_deg: float
+    polygon_xy: Polygon
+    polygon_lonlat: Polygon
+
+
+@dataclass(frozen=True, kw_only=True)
+class FrameFlag:
+    """A frame the report points out, and why (``kind``: blur, scale, low, ...)."""
+
+    name: str
+    kind: str
+    detail: str
+
+
+@dataclass(frozen=True, kw_only=True)
+class CheckResult:
+    """Everything a check measured, and the verdict. ``as_dict`` is report.json.
+
+    Rasters share ``grid`` (rows from north, ``extent_xy_m`` = (west, south, east, north) in
+    ``frame``'s metres): ``view_count`` (views per cell), ``in_area`` (cell centre inside the
+    area), ``gsd_cm_raster`` (finest GSD that sees each cell, NaN where none does),
+    ``stereo_class`` (the best pair that sees the cell: :data:`STEREO_GOOD` a B/H in the
+    thresholds' range, else :data:`STEREO_WIDE` above it, else :data:`STEREO_WEAK` below it,
+    :data:`STEREO_NONE` no pair).
+    Per-frame arrays follow ``frames``' rows.
+    """
+
+    passed: bool
+    reasons: tuple[str, ...]
+    warnings: tuple[str, ...]
+    notes: tuple[str, ...]
+    thresholds: Thresholds
+    frames: Frames
+    frame: LocalFrame
+    ground_description: str
+    area_source: str
+    area_xy: Polygon | MultiPolygon
+    area_lonlat: Polygon | MultiPolygon
+    area_m2: float
+    cell_m: float
+    grid: Any
+    extent_xy_m: tuple[float, float, float, float]
+    view_count: NDArray[np.int32]
+    in_area: NDArray[np.bool_]
+    seen_pct: dict[int, float]
+    gaps: tuple[Gap, ...]
+    footprints_xy: NDArray[np.float64]
+    footprints_lonlat: NDArray[np.float64]
+    centres_xy: NDArray[np.float64]
+    height_agl_m: NDArray[np.float64]
+    gsd_cm: NDArray[np.float64]
+    gsd_cm_raster: NDArray[np.float64] | None
+    forward_overlap_pct: Distribution | None
+    side_overlap_pct: Distribution | None
+    pair_index: NDArray[np.int64]  # (M, 2) frame rows of the overlapping pairs
+    pair_base_height_ratio: NDArray[np.float64]
+    pair_intersection_deg: NDArray[np.float64]
+    good_pair_pct: float | None
+    stereo_class: NDArray[np.int8]
+    convergent_pct: float
+    doming_risk: bool
+    speed_m_s: NDArray[np.float64] | None
+    blur_px: NDArray[np.float64] | None
+    flagged: tuple[FrameFlag, ...]
+    plan: PlanInfo | None = None
+    unpositioned: tuple[str, ...] = ()
+    stats: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def exit_code(self) -> int:
+        """0 when the check passed, 1 when it failed."""
+        return 0 if self.passed else 1
+
+    @property
+    def gap_area_m2(self) -> float:
+        return float(sum(g.area_m2 for g in self.gaps))
+
+    def key_figures(self) -> list[tuple[str, str]]:
+        """The figures a person reads first, as (label, text) rows."""
+        rows: list[tuple[str, str]] = [
+            (
+                "frames",
+                f"{len(self.frames)} ({self.frames.camera.id}, attitude {self.frames.attitude_source.value})",
+            ),
+            ("ground", self.ground_description),
+            ("area", f"{self.area_m2 / 1e4:.2f} ha ({self.area_source}), cells {self.cell_m:g} m"),
+            (
+                "seen by >= 1 / 3 / 5 frames",
+                " / ".join(f"{self.seen_pct[k]:.1f} %" for k in (1, 3, 5)),
+            ),
+            ("gaps", f"{len(self.gaps)}, {self.gap_area_m2:.0f} m2" if self.gaps else "none"),
+        ]
+        plan = self.plan
+        for label, dist, planned in (
+            ("forward overlap", self.forward_overlap_pct, plan.front_overlap_pct if plan else None),
+            ("side overlap", self.side_overlap_pct, plan.side_overlap_pct if plan else None),
+        ):
+            if dist is None:
+                rows.append((label, "not measured (no consecutive frames along a line)"))
+                continue
+            text = f"median {dist.median:.0f} % (10-90 %: {dist.p10:.0f}-{dist.p90:.0f} %)"
+            if planned is not None:
+                text += f", planned {planned:g} %"
+            rows.append((label, text))
+        bh = Distribution.of(self.pair_base_height_ratio)
+        if bh is not None:
+            text = f"median {bh.median:.2f} over {bh.count} pairs"
+            if self.good_pair_pct is not None:
+                text += f"; {self.good_pair_pct:.1f} % of the area has a pair in range"
+            rows.append(("base-height ratio", text))
+        gsd = Distribution.of(self.gsd_cm)
+        if gsd is not None:
+            rows.append(("GSD", f"median {gsd.median:.2f} cm ({gsd.min:.2f}-{gsd.max:.2f} cm)"))
+        h = Distribution.of(self.height_agl_m)
+        if h is not None:
+            rows.append(("height above ground", f"median {h.median:.1f} m ({h.min:.1f}-{h.max:.1f} m)"))
+        if self.blur_px is not None:
+            blur = Distribution.of(self.blur_px)
+            if blur is not None:
+                rows.append(("motion blur", f"median {blur.median:.2f} px, max {blur.max:.2f} px"))
+        else:
+            rows.append(("motion blur", "not computed (no capture times or exposure times)"))
+        rows.append(
+            (
+                "convergent frames",
+                f"{self.convergent_pct:.0f} %" + (" (doming risk)" if self.doming_risk else ""),
+            )
+        )
+        return rows
+
+    def as_dict(self) -> dict[str, Any]:
+        """report.json: the same figures as the HTML report (units in every key)."""
+        plan = self.plan
+        frames = self.frames
+        per_frame: list[dict[str, Any]] = []
+        for k in range(len(frames)):
+            row: dict[str, Any] = {
+                "name": frames.name[k],
+                "lon_deg": float(frames.lon_deg[k]),
+                "lat_deg": float(frames.lat_deg[k]),
+                f"alt_{frames.alt_reference.value}_m": float(frames.alt_m[k]),
+                "height_agl_m": float(self.height_agl_m[k]),
+                "yaw_deg": float(frames.yaw_deg[k]),
+                "pitch_deg": float(frames.pitch_deg[k]),
+                "roll_deg": float(frames.roll_deg[k]),
+                "gsd_cm": float(self.gsd_cm[k]),
+            }
+            if self.speed_m_s is not None:
+                row["speed_m_s"] = float(self.speed_m_s[k])
+            if self.blur_px is not None:
+                row["blur_px"] = float(self.blur_px[k])
+            per_frame.append(row)
+        bh = Distribution.of(self.pair_base_height_ratio)
+        angle = Distribution.of(self.pair_intersection_deg)
+        return {
+            "verdict": "pass" if self.passed else "fail",
+            "passed": self.passed,
+            "exit_code": self.exit_code,
+            "reasons": list(self.reasons),
+            "warnings": list(self.warnings),
+            "notes": list(self.notes),
+            "thresholds": self.thresholds.as_dict(),
+            "frames": {
+                "count": len(frames),
+                "camera_id": frames.camera.id,
+                "camera_name": frames.camera.name,
+                "attitude_source": frames.attitude_source.value,
+                "altitude_reference": frames.alt_reference.value,
+                "unpositioned": list(self.unpositioned),
+            },
+            "ground": self.ground_description,
+            "area": {
+                "source": self.area_source,
+                "area_m2": self.area_m2,
+                "crs": f"EPSG:{self.frame.epsg}" if self.frame.epsg else self.frame.crs.to_string(),
+                "cell_m": self.cell_m,
+                "extent_xy_m": list(self.extent_xy_m),
+            },
+            "coverage": {
+                "seen_by_at_least_pct": {str(k): v for k, v in self.seen_pct.items()},
+                "gap_count": len(self.gaps),
+                "gap_area_m2": self.gap_area_m2,
+                "gaps": [
+                    {
+                        "index": g.index,
+                        "area_m2": g.area_m2,
+                        "centroid_lon_deg": g.centroid_lon_deg,
+                        "centroid_lat_deg": g.centroid_lat_deg,
+                    }
+                    for g in self.gaps
+                ],
+            },
+            "overlap": {
+                "forward_pct": self.forward_overlap_pct.as_dict() if self.forward_overlap_pct else None,
+                "side_pct": self.side_overlap_pct.as_dict() if self.side_overlap_pct else None,
+                "plan_front_overlap_pct": plan.front_overlap_pct if plan else None,
+                "plan_side_overlap_pct": plan.side_overlap_pct if plan else None,
+            },
+            "stereo": {
+                "pair_count": int(self.pair_index.shape[0]),
+                "base_height_ratio": bh.as_dict() if bh else None,
+                "intersection_angle_deg": angle.as_dict() if angle else None,
+                "good_pair_area_pct": self.good_pair_pct,
+                "convergent_frames_pct": self.convergent_pct,
+                "doming_risk": self.doming_risk,
+            },
+            "gsd_cm": (d.as_dict() if (d := Distribution.of(self.gsd_cm)) else None),
+            "height_agl_m": (d.as_dict() if (d := Distribution.of(self.height_agl_m)) else None),
+            "blur_px": (
+                d.as_dict() if self.blur_px is not None and (d := Distribution.of(self.blur_px)) else None
+            ),
+            "flagged_frames": [{"name": f.name, "kind": f.kind, "detail": f.detail} for f in self.flagged],
+            "plan": (
+                {
+                    "folder": str(plan.folder),
+                    "name": plan.name,
+                    "camera_id": plan.camera.id,
+                    "altitude_agl_m": plan.altitude_agl_m,
+                    "gsd_cm": plan.gsd_cm,
+                    "front_overlap_pct": plan.front_overlap_pct,
+                    "side_overlap_pct": plan.side_overlap_pct,
+                }
+                if plan
+                else None
+            ),
+            "stats": self.stats,
+            "per_frame": per_frame,
+        }
+
+
+# --- the verdict ---------------------------------------------------------------------------------
+
+
+def judge(
+    *,
+    thresholds: Thresholds,
+    seen_pct: dict[int, float],
+    gaps: Sequence[Gap],
+    forward_overlap_pct: Distribution | None,
+    side_overlap_pct: Distribution | None,
+    plan: PlanInfo | None,
+    good_pair_pct: float | None,
+    blurred_count: int,
+    frame_count: int,
+) -> tuple[str, ...]:
+    """The reasons a check fails, each with the figure, the threshold and what it means;
+    empty when it passes."""
+    t = thresholds
+    reasons: list[str] = []
+    if seen_pct[1] < t.min_seen_1_pct:
+        gap_text = (
+            f" ({len(gaps)} gap(s), {sum(g.area_m2 for g in gaps):.0f} m2; largest "
+            f"{max(g.area_m2 for g in gaps):.0f} m2)"
+            if gaps
+            else ""
+        )
+        reasons.append(
+            f"only {seen_pct[1]:.1f} % of the area is seen by any frame (at least {t.min_seen_1_pct:g} % "
+            f"needed){gap_text}: fly the gaps again (--refly writes the mission)"
+        )
+    large = [g for g in gaps if g.area_m2 > t.max_gap_area_m2]
+    if large and seen_pct[1] >= t.min_seen_1_pct:
+        reasons.append(
+            f"{len(large)} gap(s) larger than {t.max_gap_area_m2:g} m2 (largest "
+            f"{max(g.area_m2 for g in large):.0f} m2, gap {large[0].index} in the table): holes in the "
+            "model; fly them again (--refly)"
+        )
+    if seen_pct[3] < t.min_seen_3_pct:
+        reasons.append(
+            f"only {seen_pct[3]:.1f} % of the area is seen by 3 or more frames (at least "
+            f"{t.min_seen_3_pct:g} % needed): too little redundancy to reconstruct reliably"
+        )
+    if plan is not None:
+        for what, dist, planned in (
+            ("forward", forward_overlap_pct, plan.front_overlap_pct),
+            ("side", side_overlap_pct, plan.side_overlap_pct),
+        ):
+            if dist is not None and dist.median < planned - t.max_overlap_shortfall_pct:
+                reasons.append(
+                    f"median {what} overlap {dist.median:.0f} % is more than "
+                    f"{t.max_overlap_shortfall_pct:g} points under the planned {planned:g} %"
+                )
+    if good_pair_pct is not None and good_pair_pct < t.min_good_pair_pct:
+        reasons.append(
+            f"only {good_pair_pct:.1f} % of the area is seen by a pair with a base-height ratio in "
+            f"{t.min_base_height_ratio:g}-{t.max_base_height_ratio:g} (at least {t.min_good_pair_pct:g} % "
+            "needed): depth will be poorly determined"
+        )
+    if frame_count and 100.0 * blurred_count / frame_count > t.max_blurred_frames_pct:
+        reasons.append(
+            f"{blurred_count} of {frame_count} frames ({100.0 * blurred_count / frame_count:.0f} %) have "
+            f"motion blur above {t.max_blur_px:g} px (at most {t.max_blurred_frames_pct:g} % allowed): fly "
+            "slower or use a shorter exposure"
+        )
+    return tuple(reasons)
+
+
+def default_cell_m(footprint_short_side_m: float, area_m2: float, max_cells: int = 4_000_000) -> float:
+    """Cell size for the view-count raster: 1/50 of a frame's shorter ground side (a gap of
+    2 % of a frame is resolved), rounded to 1-2-5, coarser when the area would need more than
+    ``max_cells`` cells."""
+    target = max(footprint_short_side_m / 50.0, math.sqrt(max(area_m2, 0.0) / max_cells), 0.01)
+    exponent = math.floor(math.log10(target))
+    for mantissa in (1.0, 2.0, 5.0, 10.0):
+        cell = mantissa * 10.0**exponent
+        if cell >= target * (1 - 1e-9):
+            return float(round(cell, 6))
+    return float(10.0 ** (exponent + 1))  # pragma: no cover
+
+
+ProgressCallback = Callable[[str, int, int], None]
+
+
+# --- the check -----------------------------------------------------------------------------------
+
+
+def block_area_xy(centres_xy: NDArray[np.float64], footprint_short_side_m: float) -> Polygon | MultiPolygon:
+    """The block the flight spans: the convex hull of the frames' ground centres (module
+    docstring). A single line or a single frame spans no area: its hull is then grown by a
+    quarter of a frame's shorter ground side."""
+    points = shapely.MultiPoint(centres_xy.tolist())
+    hull = points.convex_hull
+    if hull.area < (0.05 * footprint_short_side_m) ** 2:
+        hull = hull.buffer(0.25 * footprint_short_side_m)
+    assert isinstance(hull, Polygon)
+    return hull
+
+
+def run_check(
+    frames: Frames,
+    *,
+    ground: Ground,
+    area: Polygon | MultiPolygon | None = None,
+    plan: PlanInfo | None = None,
+    cell_m: float | None = None,
+    thresholds: Thresholds = Thresholds(),
+    progress: Callable[[int, int], None] | None = None,
+    ground_description: str | None = None,
+    notes: Sequence[str] = (),
+    unpositioned: Sequence[str] = (),
+) -> CheckResult:
+    """Check ``frames`` over ``ground`` (same altitude reference; see
+    :func:`processing.inputs.ground_from_options`) and judge them against ``thresholds``.
+
+    ``area``: WGS84 polygon to judge (None: the plan's area, else the flown block; module
+    docstring). ``plan``: the plan the frames were meant to follow (its overlaps are the
+    reference of the overlap checks). ``cell_m``: raster cell size in metres (None:
+    :func:`default_cell_m`). ``progress(done, total)``: called while the view counts are
+    rasterized (the long part). ``notes`` and ``unpositioned`` (image names left out) go into
+    the report as they are.
+    """
+    from .coverage import (
+        area_mask,
+        coverage_stats,
+        gap_polygons,
+        min_value_raster,
+        view_count_raster,
+    )
+    from .footprints import project_footprints
+
+    if len(frames) == 0:
+        raise ProcessingError("there is no frame to check")
+    warnings: list[str] = []
+    all_notes = list(notes)
+    frame = frames_local_frame(frames)
+    fp = project_footprints(frames, frame, ground)
+    valid = fp.valid
+    flagged: list[FrameFlag] = [
+        FrameFlag(name=frames.name[k], kind="no footprint", detail=fp.reason[k])
+        for k in np.flatnonzero(~valid)
+    ]
+    if not valid.any():
+        raise ProcessingError(
+            f"no frame has a complete footprint on the ground ({fp.reason[0]}); check the ground and the "
+            "attitude"
+        )
+    height = fp.height_above_ground_m
+    median_height = float(np.median(height[valid]))
+    nominal = frames.camera.footprint(median_height, Orientation.LANDSCAPE)
+    short_side_m = min(nominal.along_m, nominal.across_m)
+    centres = fp.principal_xyz_m[:, :2]
+
+    # The area.
+    if area is not None:
+        area_lonlat = area
+        area_source = "the area given"
+    elif plan is not None and plan.area_lonlat is not None:
+        area_lonlat = plan.area_lonlat
+        area_source = f"the plan's area ({plan.folder.name}/area.geojson)"
+    else:
+        area_lonlat = None
+        area_source = (
+            "the block the flight spans (convex hull of the frames' ground centres); give the plan or an "
+            "area for a concave block"
+        )
+    if area_lonlat is not None:
+        area_xy = frame.geometry_to_xy(area_lonlat)
+    else:
+        area_xy = block_area_xy(centres[valid], short_side_m)
+        area_lonlat = frame.geometry_to_lonlat(area_xy)
+    assert isinstance(area_xy, Polygon | MultiPolygon) and isinstance(area_lonlat, Polygon | MultiPolygon)
+    if area_xy.is_empty or area_xy.area <= 0:
+        raise ProcessingError("the area to check is empty; check the area polygon")
+    rings = fp.xy_m[valid]
+    xmin = min(area_xy.bounds[0], float(rings[..., 0].min()))
+    ymin = min(area_xy.bounds[1], float(rings[..., 1].min()))
+    xmax = max(area_xy.bounds[2], float(rings[..., 0].max()))
+    ymax = max(area_xy.bounds[3], float(rings[..., 1].max()))
+    if cell_m is None:
+        cell_m = default_cell_m(short_side_m, (xmax - xmin) * (ymax - ymin))
+    elif not (math.isfinite(cell_m) and cell_m > 0):
+        raise ProcessingError(f"cell_m = {cell_m} must be a positive number of metres")
+    grid = Grid.from_bounds((xmin, ymin, xmax, ymax), cell_m, frame.crs)
+    log.info("view counts over %d x %d cells of %g m", grid.rows, grid.cols, cell_m)
+    counts = view_count_raster(rings, grid, progress=progress)
+    in_area = area_mask(area_xy, grid)
+    if not in_area.any():
+        raise ProcessingError(
+            f"the area covers no cell of {cell_m:g} m; give a smaller --cell-m (the area is "
+            f"{area_xy.area:.1f} m2)"
+        )
+    stats = coverage_stats(counts, in_area)
+    seen_pct = {k: float(stats["seen_by_at_least_pct"][str(k)]) for k in VIEW_LEVELS}
+    gaps: list[Gap] = []
+    for k, polygon in enumerate(
+        gap_polygons(counts, in_area, grid, min_views=1, min_area_m2=thresholds.min_gap_area_m2),
+        start=1,
+    ):
+        lonlat = frame.geometry_to_lonlat(polygon)
+        assert isinstance(lonlat, Polygon)
+        c = lonlat.centroid
+        gaps.append(
+            Gap(
+                index=k,
+                area_m2=float(polygon.area),
+                centroid_lon_deg=float(c.x),
+                centroid_lat_deg=float(c.y),
+                polygon_xy=polygon,
+                polygon_lonlat=lonlat,
+            )
+        )
+    gsd_raster = min_value_raster(rings, fp.gsd_cm[valid], grid)
+
+    stereo = _stereo(frames, fp, ground, frame, grid, in_area, thresholds)
+    warnings.extend(stereo.warnings)
+    flagged.extend(stereo.flagged)
+
+    if frames.attitude_source is AttitudeSource.ASSUMED_NADIR:
+        warnings.append(
+            "the images carry no attitude: every frame was taken as nadir with the image top along the "
+            "track; tilted frames would shift the footprints"
+        )
+    if unpositioned:
+        warnings.append(
+            f"{len(unpositioned)} image(s) without a position were left out: {', '.join(unpositioned)}"
+        )
+    if stereo.doming_risk:
+        warnings.append(
+            f"only {stereo.convergent_pct:.0f} % of the frames are convergent (oblique): a nadir-only block "
+            "risks the doming effect (James and Robson 2014); add oblique frames or a crosshatch pass"
+        )
+    if plan is not None:
+        gsd = Distribution.of(fp.gsd_cm[valid])
+        if gsd is not None and gsd.median > 1.1 * plan.gsd_cm:
+            warnings.append(
+                f"median GSD {gsd.median:.2f} cm is more than 10 % coarser than the planned "
+                f"{plan.gsd_cm:.2f} cm: flown higher than planned?"
+            )
+    blurred = sum(1 for f in flagged if f.kind == "blur")
+    reasons = judge(
+        thresholds=thresholds,
+        seen_pct=seen_pct,
+        gaps=gaps,
+        forward_overlap_pct=stereo.forward_overlap_pct,
+        side_overlap_pct=stereo.side_overlap_pct,
+        plan=plan,
+        good_pair_pct=stereo.good_pair_pct,
+        blurred_count=blurred,
+        frame_count=len(frames),
+    )
+    lonlat_rings = np.stack(frame.to_lonlat(fp.xy_m[..., 0], fp.xy_m[..., 1]), axis=-1)
+    return CheckResult(
+        passed=not reasons,
+        reasons=reasons,
+        warnings=tuple(warnings),
+        notes=tuple(all_notes),
+        thresholds=thresholds,
+        frames=frames,
+        frame=frame,
+        ground_description=ground_description or ground.description,
+        area_source=area_source,
+        area_xy=area_xy,
+        area_lonlat=area_lonlat,
+        area_m2=float(area_xy.area),
+        cell_m=float(cell_m),
+        grid=grid,
+        extent_xy_m=grid.bounds,
+        view_count=counts.counts.astype(np.int32),
+        in_area=in_area,
+        seen_pct=seen_pct,
+        gaps=tuple(gaps),
+        footprints_xy=fp.xy_m,
+        footprints_lonlat=lonlat_rings,
+        centres_xy=centres[valid],
+        height_agl_m=height,
+        gsd_cm=fp.gsd_cm,
+        gsd_cm_raster=gsd_raster,
+        forward_overlap_pct=stereo.forward_overlap_pct,
+        side_overlap_pct=stereo.side_overlap_pct,
+        pair_index=stereo.pair_index,
+        pair_base_height_ratio=stereo.pair_base_height_ratio,
+        pair_intersection_deg=stereo.pair_intersection_deg,
+        good_pair_pct=stereo.good_pair_pct,
+        stereo_class=stereo.stereo_class,
+        convergent_pct=stereo.convergent_pct,
+        doming_risk=stereo.doming_risk,
+        speed_m_s=stereo.speed_m_s,
+        blur_px=stereo.blur_px,
+        flagged=tuple(flagged),
+        plan=plan,
+        unpositioned=tuple(unpositioned),
+        stats={
+            "views_median": stats["views_median"],
+            "views_max": stats["views_max"],
+            "cells": stats["cells"],
+            "pairs": int(stereo.pair_index.shape[0]),
+            "lines": stereo.line_count,
+        },
+    )
+
+
+@dataclass(frozen=True, kw_only=True)
+class _Stereo:
+    forward_overlap_pct: Distribution | None
+    side_overlap_pct: Distribution | None
+    pair_index: NDArray[np.int64]
+    pair_base_height_ratio: NDArray[np.float64]
+    pair_intersection_deg: NDArray[np.float64]
+    good_pair_pct: float | None
+    stereo_class: NDArray[np.int8]
+    convergent_pct: float
+    doming_risk: bool
+    speed_m_s: NDArray[np.float64] | None
+    blur_px: NDArray[np.float64] | None
+    flagged: tuple[FrameFlag, ...]
+    warnings: tuple[str, ...]
+    line_count: int
+
+
+def _stereo(
+    frames: Frames,
+    fp: Footprints,
+    ground: Ground,
+    frame: LocalFrame,
+    grid: Grid,
+    in_area: NDArray[np.bool_],
+    thresholds: Thresholds,
+) -> _Stereo:
+    """Pairs, overlaps, convergence, scale and blur through :mod:`processing.stereo`."""
+    from .coverage import count_raster
+    from .stereo import (
+        CONVERGENT_OFF_NADIR_DEG,
+        flight_lines,
+        forward_overlaps_pct,
+        motion_blur,
+        off_nadir_deg,
+        overlapping_pairs,
+        scale_outliers,
+        side_overlaps_pct,
+    )
+
+    pairs = overlapping_pairs(fp, ground, frame)
+    lines = flight_lines(frames, fp)
+    bh = pairs.base_height_ratio
+    lo, hi = thresholds.min_base_height_ratio, thresholds.max_base_height_ratio
+    classes = np.full(grid.shape, STEREO_NONE, dtype=np.int8)
+    good_pct: float | None = None
+    if len(pairs):
+        # Later classes win: a cell with any good pair is good, else wide, else weak.
+        for code, select in (
+            (STEREO_WEAK, bh < lo),
+            (STEREO_WIDE, bh > hi),
+            (STEREO_GOOD, (bh >= lo) & (bh <= hi)),
+        ):
+            if select.any():
+                classes[count_raster(list(pairs.intersection[select]), grid) > 0] = code
+        good_pct = 100.0 * float(((classes == STEREO_GOOD) & in_area).sum()) / float(in_area.sum())
+    flagged: list[FrameFlag] = []
+    tolerance = thresholds.max_scale_difference_pct / 100.0
+    for k in scale_outliers(fp, pairs, tolerance):
+        flagged.append(
+            FrameFlag(
+                name=frames.name[k],
+                kind="scale",
+                detail=(
+                    f"GSD {fp.gsd_cm[k]:.2f} cm differs by more than "
+                    f"{thresholds.max_scale_difference_pct:g} % from its overlapping neighbours' (height "
+                    f"above ground {fp.height_above_ground_m[k]:.1f} m)"
+                ),
+            )
+        )
+    blur = motion_blur(frames, fp)
+    speed = blur.speed_m_s if blur is not None else None
+    blur_px = blur.blur_px if blur is not None else None
+    if blur is not None:
+        for k in np.flatnonzero(np.nan_to_num(blur.blur_px, nan=0.0) > thresholds.max_blur_px):
+            flagged.append(
+                FrameFlag(
+                    name=frames.name[k],
+                    kind="blur",
+                    detail=(
+                        f"{blur.blur_px[k]:.2f} px of motion blur ({blur.speed_m_s[k]:.1f} m/s x "
+                        f"{blur.exposure_s[k] * 1000:.2f} ms / {fp.gsd_cm[k]:.2f} cm GSD)"
+                    ),
+                )
+            )
+    warnings: list[str] = []
+    scale_count = sum(1 for f in flagged if f.kind == "scale")
+    if scale_count:
+        warnings.append(
+            f"{scale_count} frame(s) differ in scale by more than {thresholds.max_scale_difference_pct:g} % "
+            "from their neighbours: matching across them may fail (flagged frames)"
+        )
+    off_nadir = off_nadir_deg(fp)[fp.valid]
+    convergent_pct = 100.0 * float((off_nadir > CONVERGENT_OFF_NADIR_DEG).mean()) if off_nadir.size else 0.0
+    return _Stereo(
+        forward_overlap_pct=Distribution.of(forward_overlaps_pct(frames, fp, lines)),
+        side_overlap_pct=Distribution.of(side_overlaps_pct(frames, fp, lines)),
+        pair_index=np.column_stack([pairs.i, pairs.j]).astype(np.int64),
+        pair_base_height_ratio=np.asarray(bh, dtype=np.float64),
+        pair_intersection_deg=np.asarray(pairs.intersection_angle_deg, dtype=np.float64),
+        good_pair_pct=good_pct,
+        stereo_class=classes,
+        convergent_pct=convergent_pct,
+        doming_risk=not bool((off_nadir > CONVERGENT_OFF_NADIR_DEG).any()),
+        speed_m_s=speed,
+        blur_px=blur_px,
+        flagged=tuple(flagged),
+        warnings=tuple(warnings),
+        line_count=int(np.unique(lines).size),
+    )

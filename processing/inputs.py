@@ -1,0 +1,692 @@
+"""What a coverage check starts from: frames (from images or a plan folder) and the ground.
+
+- :func:`read_image_frames` / :func:`frames_from_images`: a folder of geotagged JPEGs. Position
+  from EXIF GPS (altitude AMSL), or DJI's XMP relative altitude when every frame carries it;
+  attitude from the Pix4D XMP camera tags when every frame carries them, else nadir with the
+  image top along the track (:attr:`~processing.frames.AttitudeSource.ASSUMED_NADIR`); the camera
+  from EXIF make, model, focal length and image size matched to the database, or given. An image
+  without a position is never guessed: it is listed.
+- :func:`frames_from_plan`: a folder written by ``sfap plan`` (stations.geojson, summary.json,
+  area.geojson): every planned station as a frame, altitudes relative to home.
+- :func:`ground_from_options`: the ground those altitudes are measured against. Height above
+  ground is the critical unknown of a field check (REFERENCES.md section 5), so nothing is
+  assumed silently: EXIF altitudes are AMSL and need a ground elevation or a DEM; plan
+  altitudes are relative to home, over flat ground at home unless a DEM and the take-off
+  elevation say otherwise. The choice is named in :attr:`GroundChoice.description`.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+import os
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from pyproj import CRS, Geod
+from shapely.geometry import MultiPolygon, Polygon, shape
+
+from planner.camera import Camera, Orientation
+from planner.camera_db import get_camera, match_exif
+from planner.errors import CameraError
+from planner.geo import LocalFrame
+
+from .errors import FramesError, GroundError
+from .frames import AltitudeReference, AttitudeSource, Frames
+
+if TYPE_CHECKING:
+    from acquisition.exif import ImageTags
+
+    from .ground import Ground
+
+log = logging.getLogger(__name__)
+
+#: File suffixes read as images (case-insensitive).
+IMAGE_SUFFIXES = (".jpg", ".jpeg")
+
+#: Files that make a folder a plan folder (written by ``sfap plan``).
+PLAN_FILES = ("summary.json", "stations.geojson")
+
+#: Lowest camera height above the ground accepted before the ground is called wrong, metres.
+MIN_HEIGHT_AGL_M = 1.0
+
+_GEOD = Geod(ellps="WGS84")
+
+
+# --- images --------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, kw_only=True)
+class ImageFrames:
+    """The frames read from an image folder and what could not be used.
+
+    - ``frames``: one row per image with a position, in capture order.
+    - ``unpositioned``: names of the images without a usable position (never guessed).
+    - ``camera_source``: how the camera was found ("given", "EXIF matched to ...").
+    - ``notes``: what was assumed, in words for the report (attitude, times, altitudes).
+    """
+
+    frames: Frames
+    unpositioned: tuple[str, ...] = ()
+    camera_source: str = ""
+    notes: tuple[str, ...] = ()
+
+
+def is_plan_folder(path: str | os.PathLike[str]) -> bool:
+    """True when ``path`` is a folder written by ``sfap plan`` (it holds summary.json and
+    stations.geojson)."""
+    folder = Path(path)
+    return folder.is_dir() and all((folder / name).is_file() for name in PLAN_FILES)
+
+
+def image_paths(folder: str | os.PathLike[str]) -> list[Path]:
+    """The JPEG files directly in ``folder``, sorted by name."""
+    root = Path(folder)
+    if not root.is_dir():
+        raise FramesError(f"{root} is not a folder; give the folder that holds the images")
+    paths = sorted(p for p in root.iterdir() if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES)
+    if not paths:
+        raise FramesError(
+            f"{root} holds no JPEG image (.jpg/.jpeg); give the folder of geotagged images or a plan folder "
+            "written by `sfap plan`"
+        )
+    return paths
+
+
+def read_image_frames(
+    folder: str | os.PathLike[str],
+    *,
+    camera: Camera | None = None,
+    fallback_camera: Camera | None = None,
+    progress: Callable[[int], None] | None = None,
+) -> ImageFrames:
+    """Read every JPEG in ``folder`` as a frame (see the module docstring for the rules).
+
+    ``camera``: the camera that took the images; None to match their EXIF against the
+    database (``fallback_camera``, e.g. the plan's, when nothing matches; else a CameraError
+    names the EXIF values). ``progress(1)`` is
+    called after each image read. Raises FramesError when no image has a position.
+    """
+    from acquisition.exif import read_tags  # pyexiv2 is only needed for images
+
+    paths = image_paths(folder)
+    tags: list[ImageTags] = []
+    for path in paths:
+        tags.append(read_tags(path))
+        if progress is not None:
+            progress(1)
+    return frames_from_tags(tags, camera=camera, fallback_camera=fallback_camera, where=str(folder))
+
+
+def frames_from_images(folder: str | os.PathLike[str], *, camera: Camera | None = None) -> Frames:
+    """The frames of every image in ``folder``; FramesError if any image has no position.
+
+    The error lists the images; :func:`read_image_frames` reads the others and lists them.
+    """
+    result = read_image_frames(folder, camera=camera)
+    if result.unpositioned:
+        raise FramesError(
+            f"{len(result.unpositioned)} image(s) in {folder} have no GPS position: "
+            f"{', '.join(result.unpositioned)}; geotag them (`sfap geotag`) or move them out"
+        )
+    return result.frames
+
+
+def _camera_for(
+    tags: Sequence[ImageTags], camera: Camera | None, where: str, fallback: Camera | None = None
+) -> tuple[Camera, str]:
+    if camera is not None:
+        return camera, f"given: {camera.id}"
+    seen: dict[tuple[Any, ...], list[str]] = {}
+    for t in tags:
+        key = (t.make, t.model, t.focal_length_mm, t.width_px, t.height_px)
+        seen.setdefault(key, []).append(t.name)
+    if len(seen) > 1:
+        described = "; ".join(
+            f"{make} {model} {focal} mm {w}x{h} px ({len(names)} images, e.g. {names[0]})"
+            for (make, model, focal, w, h), names in seen.items()
+        )
+        raise CameraError(
+            f"{where}: the images come from more than one camera or lens ({described}); check one camera at "
+            "a time (move the others to another folder)"
+        )
+    (make, model, focal, width, height), _ = next(iter(seen.items()))
+    matched = match_exif(make, model, focal, width, height)
+    if matched is None and fallback is not None:
+        return fallback, f"the plan's camera {fallback.id} (EXIF {make} {model} matches no database camera)"
+    if matched is None:
+        raise CameraError(
+            f"{where}: no camera in the database matches EXIF make {make!r}, model {model!r}, focal length "
+            f"{focal} mm, image {width}x{height} px; `sfap cameras` lists the known cameras: pass one "
+            "(--camera ID)"
+        )
+    return matched, f"EXIF {make} {model} matched to {matched.id}"
+
+
+#: A frame whose incoming and outgoing steps turn by more than this is at a turn (a line's end).
+TURN_DEG = 30.0
+
+
+def track_heading_deg(lon_deg: np.ndarray, lat_deg: np.ndarray) -> np.ndarray:
+    """True bearing of the track at each point, degrees 0-360 (clockwise from north).
+
+    Central difference (previous to next point) on the WGS84 ellipsoid, one-sided at the
+    track's ends. At a turn (the steps in and out differ by more than :data:`TURN_DEG`: the
+    first or last frame of a line) the shorter step's bearing: the neighbour on the frame's
+    own line is the one a trigger distance away, the other is across the turn. A point that
+    has not moved from either neighbour gets 0.
+    """
+    n = lon_deg.shape[0]
+    if n < 2:
+        return np.zeros(n)
+    prev = np.r_[0, np.arange(n - 1)]
+    nxt = np.r_[np.arange(1, n), n - 1]
+    azimuth, _, distance = _GEOD.inv(lon_deg[prev], lat_deg[prev], lon_deg[nxt], lat_deg[nxt])
+    heading = np.where(np.asarray(distance) > 0.0, np.asarray(azimuth, float) % 360.0, 0.0)
+    if n >= 3:
+        step_az, _, step_len = _GEOD.inv(lon_deg[:-1], lat_deg[:-1], lon_deg[1:], lat_deg[1:])
+        step_az = np.asarray(step_az, float) % 360.0
+        step_len = np.asarray(step_len, float)
+        az_in, az_out = step_az[:-1], step_az[1:]  # for points 1..n-2
+        len_in, len_out = step_len[:-1], step_len[1:]
+        turn = np.abs((az_out - az_in + 180.0) % 360.0 - 180.0)
+        at_turn = (turn > TURN_DEG) & (len_in > 0) & (len_out > 0)
+        shorter = np.where(len_in <= len_out, az_in, az_out)
+        heading[1:-1] = np.where(at_turn, shorter, heading[1:-1])
+    return np.asarray(heading, dtype=np.float64)
+
+
+def frames_from_track(
+    *,
+    name: Sequence[str],
+    lon_deg: np.ndarray,
+    lat_deg: np.ndarray,
+    alt_m: np.ndarray,
+    alt_reference: AltitudeReference,
+    camera: Camera,
+    time_utc_s: np.ndarray | None = None,
+    exposure_s: np.ndarray | None = None,
+    orientation: Orientation = Orientation.LANDSCAPE,
+) -> Frames:
+    """Frames from positions alone (camera events of a flight log, a simulated flight): nadir,
+    the image top along the track (:func:`track_heading_deg`; landscape: forward, portrait:
+    90 deg to the left), :attr:`AttitudeSource.ASSUMED_NADIR`. Rows are taken in the order
+    given, which must be the capture order."""
+    lon = np.asarray(lon_deg, dtype=np.float64)
+    lat = np.asarray(lat_deg, dtype=np.float64)
+    heading = track_heading_deg(lon, lat)
+    yaw = heading if orientation is Orientation.LANDSCAPE else (heading - 90.0) % 360.0
+    return Frames(
+        name=tuple(name),
+        lon_deg=lon,
+        lat_deg=lat,
+        alt_m=np.asarray(alt_m, dtype=np.float64),
+        alt_reference=alt_reference,
+        yaw_deg=yaw,
+        pitch_deg=np.zeros_like(yaw),
+        roll_deg=np.zeros_like(yaw),
+        attitude_source=AttitudeSource.ASSUMED_NADIR,
+        camera=camera,
+        time_utc_s=None if time_utc_s is None else np.asarray(time_utc_s, dtype=np.float64),
+        exposure_s=None if exposure_s is None else np.asarray(exposure_s, dtype=np.float64),
+    )
+
+
+def frames_from_tags(
+    tags: Sequence[ImageTags],
+    *,
+    camera: Camera | None = None,
+    fallback_camera: Camera | None = None,
+    where: str = "images",
+) -> ImageFrames:
+    """Frames from tags already read (:func:`acquisition.exif.read_tags`); rules as
+    :func:`read_image_frames`."""
+    if not tags:
+        raise FramesError(f"{where}: no images")
+    notes: list[str] = []
+    dji_rel = all(t.dji_alt_rel_home_m is not None for t in tags)
+
+    def position(t: ImageTags) -> tuple[float, float, float] | None:
+        lat = t.gps_lat_deg if t.gps_lat_deg is not None else t.dji_lat_deg
+        lon = t.gps_lon_deg if t.gps_lon_deg is not None else t.dji_lon_deg
+        alt = t.dji_alt_rel_home_m if dji_rel else t.gps_alt_amsl_m
+        if alt is None and not dji_rel:
+            alt = t.dji_alt_amsl_m
+        if lat is None or lon is None or alt is None:
+            return None
+        if not (-90 <= lat <= 90 and -180 <= lon <= 180 and math.isfinite(alt)):
+            return None
+        if lat == 0.0 and lon == 0.0:  # a receiver without a fix writes zeros
+            return None
+        return lon, lat, alt
+
+    kept: list[tuple[ImageTags, tuple[float, float, float]]] = []
+    unpositioned: list[str] = []
+    for t in tags:
+        pos = position(t)
+        if pos is None:
+            unpositioned.append(t.name)
+        else:
+            kept.append((t, pos))
+    if unpositioned:
+        log.warning(
+            "%d image(s) without a GPS position are left out of the check: %s",
+            len(unpositioned),
+            ", ".join(unpositioned),
+        )
+        notes.append(
+            f"{len(unpositioned)} image(s) without a GPS position left out (not guessed): "
+            + ", ".join(unpositioned)
+        )
+    if not kept:
+        raise FramesError(
+            f"{where}: none of the {len(tags)} images has a GPS position (EXIF GPSLatitude, GPSLongitude, "
+            "GPSAltitude); geotag them first (`sfap geotag`)"
+        )
+    used_camera, camera_source = _camera_for([t for t, _ in kept], camera, where, fallback_camera)
+
+    # Capture order: GPS time (UTC, sub-second on most drones) when every frame has it, else
+    # the camera clock; its offset to UTC does not matter for ordering or for speeds.
+    times: np.ndarray | None = None
+    if all(t.gps_time_utc_s is not None for t, _ in kept):
+        times = np.array([t.gps_time_utc_s for t, _ in kept], dtype=np.float64)
+    elif all(t.capture_time_s is not None for t, _ in kept):
+        times = np.array([t.capture_time_s for t, _ in kept], dtype=np.float64)
+        if not all(t.capture_time_zone_known for t, _ in kept):
+            notes.append(
+                "capture times from the camera clock (time zone unknown): speeds are right, clock times may "
+                "be offset"
+            )
+    else:
+        notes.append("no capture time on every image: frames ordered by file name, no speeds or blur")
+    order = np.argsort(times, kind="stable") if times is not None else np.arange(len(kept))
+    kept = [kept[i] for i in order]
+    if times is not None:
+        times = times[order]
+
+    lon = np.array([p[0] for _, p in kept], dtype=np.float64)
+    lat = np.array([p[1] for _, p in kept], dtype=np.float64)
+    alt = np.array([p[2] for _, p in kept], dtype=np.float64)
+    reference = AltitudeReference.REL_HOME if dji_rel else AltitudeReference.AMSL
+    if dji_rel:
+        notes.append("altitudes from DJI XMP RelativeAltitude (above the take-off point)")
+    else:
+        notes.append("altitudes from EXIF GPSAltitude (above mean sea level)")
+
+    if all(t.camera_yaw_deg is not None and t.camera_pitch_deg is not None for t, _ in kept):
+        yaw = np.array([t.camera_yaw_deg for t, _ in kept], dtype=np.float64) % 360.0
+        pitch = np.array([t.camera_pitch_deg for t, _ in kept], dtype=np.float64)
+        roll = np.array([t.camera_roll_deg or 0.0 for t, _ in kept], dtype=np.float64)
+        attitude = AttitudeSource.XMP
+        notes.append("attitude from the images' XMP camera tags (Camera:Yaw/Pitch/Roll)")
+    else:
+        # Landscape mounting (image top forward) is what multirotor mapping cameras use; the
+        # report says the attitude was assumed.
+        yaw = track_heading_deg(lon, lat)
+        pitch = np.zeros_like(yaw)
+        roll = np.zeros_like(yaw)
+        attitude = AttitudeSource.ASSUMED_NADIR
+        missing = sum(1 for t, _ in kept if t.camera_yaw_deg is None or t.camera_pitch_deg is None)
+        notes.append(
+            f"attitude ASSUMED: {missing} of {len(kept)} images carry no XMP camera attitude, so every "
+            "frame is taken as nadir with the image top along the track"
+        )
+        log.warning(notes[-1])
+
+    exposure: np.ndarray | None = None
+    if all(t.exposure_time_s is not None for t, _ in kept):
+        exposure = np.array([t.exposure_time_s for t, _ in kept], dtype=np.float64)
+    elif used_camera.shutter_s is not None:
+        exposure = np.array(
+            [t.exposure_time_s if t.exposure_time_s is not None else used_camera.shutter_s for t, _ in kept],
+            dtype=np.float64,
+        )
+        notes.append(f"exposure time missing on some images: the camera's {used_camera.shutter_s:g} s used")
+    else:
+        notes.append("no exposure time on every image: motion blur not computed")
+
+    frames = Frames(
+        name=tuple(t.name for t, _ in kept),
+        lon_deg=lon,
+        lat_deg=lat,
+        alt_m=alt,
+        alt_reference=reference,
+        yaw_deg=yaw,
+        pitch_deg=pitch,
+        roll_deg=roll,
+        attitude_source=attitude,
+        camera=used_camera,
+        time_utc_s=times,
+        exposure_s=exposure,
+        line_index=None,
+    )
+    return ImageFrames(
+        frames=frames,
+        unpositioned=tuple(unpositioned),
+        camera_source=camera_source,
+        notes=tuple(notes),
+    )
+
+
+# --- plans ---------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, kw_only=True)
+class PlanInfo:
+    """What a check needs from a plan folder (summary.json and area.geojson).
+
+    Overlaps in percent, altitudes above ground (``altitude_agl_m``) or home, areas in WGS84
+    lon/lat; ``summary`` is summary.json as read.
+    """
+
+    folder: Path
+    name: str
+    camera: Camera
+    orientation: Orientation
+    front_overlap_pct: float
+    side_overlap_pct: float
+    altitude_agl_m: float
+    gsd_cm: float
+    speed_m_s: float
+    home_lat_deg: float | None
+    home_lon_deg: float | None
+    home_alt_amsl_m: float | None
+    area_lonlat: Polygon | MultiPolygon | None
+    exclusions_lonlat: tuple[Polygon, ...] = ()
+    summary: dict[str, Any] = field(default_factory=dict, compare=False)
+
+
+def _read_json(path: Path) -> Any:
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
+        raise FramesError(f"{path} cannot be read as JSON ({error}); re-run `sfap plan`") from None
+
+
+def read_plan_info(plan_dir: str | os.PathLike[str], *, camera: Camera | None = None) -> PlanInfo:
+    """The plan's numbers and area from a folder written by ``sfap plan``.
+
+    ``camera``: needed only when the plan used a custom camera (summary.json names the
+    camera by id, and a custom camera is not in the database).
+    """
+    folder = Path(plan_dir)
+    if not is_plan_folder(folder):
+        raise FramesError(
+            f"{folder} is not a plan folder (it needs {' and '.join(PLAN_FILES)}); give the folder `sfap "
+            "plan ... -o FOLDER` wrote"
+        )
+    summary = _read_json(folder / "summary.json")
+    if not isinstance(summary, dict):
+        raise FramesError(f"{folder / 'summary.json'} is not a JSON object; re-run `sfap plan`")
+    try:
+        camera_id = str(summary["camera_id"])
+        used = camera if camera is not None else get_camera(camera_id)
+        orientation = Orientation(summary.get("orientation", "landscape"))
+        home = summary.get("home") or {}
+        info_numbers = {
+            key: float(summary[key])
+            for key in (
+                "front_overlap_pct",
+                "side_overlap_pct",
+                "altitude_agl_m",
+                "gsd_cm",
+                "speed_m_s",
+            )
+        }
+    except CameraError as error:
+        raise FramesError(
+            f"{folder / 'summary.json'}: {error}; a plan made with a custom camera needs that camera given "
+            "to the check"
+        ) from None
+    except (KeyError, TypeError, ValueError) as error:
+        raise FramesError(
+            f"{folder / 'summary.json'}: missing or bad value {error}; re-run `sfap plan`"
+        ) from None
+
+    area: Polygon | MultiPolygon | None = None
+    exclusions: list[Polygon] = []
+    area_file = folder / "area.geojson"
+    if area_file.is_file():
+        data = _read_json(area_file)
+        areas = []
+        for feature in data.get("features", []):
+            geom = shape(feature["geometry"])
+            kind = feature.get("properties", {}).get("kind")
+            if kind == "exclusion" and isinstance(geom, Polygon):
+                exclusions.append(geom)
+            elif kind == "area" and isinstance(geom, Polygon | MultiPolygon):
+                areas.append(geom)
+        if areas:
+            area = (
+                areas[0]
+                if len(areas) == 1
+                else MultiPolygon([p for a in areas for p in getattr(a, "geoms", [a])])
+            )
+    return PlanInfo(
+        folder=folder,
+        name=str(summary.get("name", folder.name)),
+        camera=used,
+        orientation=orientation,
+        home_lat_deg=_opt_float(home.get("lat_deg")),
+        home_lon_deg=_opt_float(home.get("lon_deg")),
+        home_alt_amsl_m=_opt_float(home.get("alt_amsl_m")),
+        area_lonlat=area,
+        exclusions_lonlat=tuple(exclusions),
+        summary=summary,
+        **info_numbers,
+    )
+
+
+def _opt_float(value: Any) -> float | None:
+    return None if value is None else float(value)
+
+
+def frames_from_plan(
+    plan_dir: str | os.PathLike[str], *, camera: Camera | None = None
+) -> tuple[Frames, PlanInfo]:
+    """Every planned station of a plan folder as a frame, and the plan's numbers.
+
+    Altitudes are relative to home (:attr:`AltitudeReference.REL_HOME`). Attitude (the module
+    docstring of :mod:`processing.frames`): yaw is the bearing of the image top: the look
+    heading for tilted (oblique) stations, for nadir stations the flight heading in landscape
+    and heading - 90 in portrait; pitch is the tilt off nadir; roll 0. ``line_index`` numbers
+    the (pass, line) pairs in flight order, so lines of different passes stay apart.
+    """
+    info = read_plan_info(plan_dir, camera=camera)
+    path = Path(plan_dir) / "stations.geojson"
+    data = _read_json(path)
+    features = data.get("features", []) if isinstance(data, dict) else []
+    if not features:
+        raise FramesError(f"{path} holds no station; the plan has no photo to check")
+    try:
+        props = [f["properties"] for f in features]
+        lon = np.array([p["lon_deg"] for p in props], dtype=np.float64)
+        lat = np.array([p["lat_deg"] for p in props], dtype=np.float64)
+        alt = np.array([p["alt_rel_home_m"] for p in props], dtype=np.float64)
+        heading = np.array([p["heading_deg"] for p in props], dtype=np.float64)
+        look = np.array([p["look_heading_deg"] for p in props], dtype=np.float64)
+        tilt = np.array([p["tilt_deg"] for p in props], dtype=np.float64)
+        pass_index = np.array([p["pass"] for p in props], dtype=np.int64)
+        line = np.array([p["line"] for p in props], dtype=np.int64)
+        station = [int(p.get("station", k)) for k, p in enumerate(props)]
+    except (KeyError, TypeError, ValueError) as error:
+        raise FramesError(f"{path}: a station lacks {error}; re-run `sfap plan`") from None
+    landscape = info.orientation is Orientation.LANDSCAPE
+    nadir_up = heading % 360.0 if landscape else (heading - 90.0) % 360.0
+    yaw = np.where(tilt > 0.0, look % 360.0, nadir_up)
+    line_ids: dict[tuple[int, int], int] = {}
+    line_index = np.array(
+        [line_ids.setdefault((int(a), int(b)), len(line_ids)) for a, b in zip(pass_index, line, strict=True)],
+        dtype=np.int32,
+    )
+    frames = Frames(
+        name=tuple(f"{a}-{b}-{s}" for a, b, s in zip(pass_index, line, station, strict=True)),
+        lon_deg=lon,
+        lat_deg=lat,
+        alt_m=alt,
+        alt_reference=AltitudeReference.REL_HOME,
+        yaw_deg=yaw,
+        pitch_deg=tilt,
+        roll_deg=np.zeros_like(yaw),
+        attitude_source=AttitudeSource.PLAN,
+        camera=info.camera,
+        time_utc_s=None,
+        exposure_s=None,
+        line_index=line_index,
+    )
+    return frames, info
+
+
+# --- the ground ----------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, kw_only=True)
+class GroundChoice:
+    """The ground a check projects onto, the frames in the ground's altitude reference, and
+    in words where the ground came from (for the report)."""
+
+    ground: Ground
+    frames: Frames
+    description: str
+
+
+def ground_from_options(
+    *,
+    frames: Frames,
+    dem: str | os.PathLike[str] | None = None,
+    ground_elevation_m: float | None = None,
+    takeoff_elevation_m: float | None = None,
+) -> GroundChoice:
+    """Choose the ground from what the user gave; refuse (GroundError) rather than guess.
+
+    - ``dem``: a GeoTIFF of ground elevations above mean sea level (any CRS).
+    - ``ground_elevation_m``: flat ground at this elevation above mean sea level.
+    - ``takeoff_elevation_m``: elevation above mean sea level of the take-off point.
+
+    Frames with AMSL altitudes need a DEM, a ground elevation or a take-off elevation (flat
+    ground at take-off). Frames relative to home lie over flat ground at home unless a DEM or
+    a ground elevation is given, which then needs the take-off elevation to put the frames on
+    the same reference (their altitudes are rebased to AMSL). AGL frames lie over flat ground at
+    0. Every frame must end up at least :data:`MIN_HEIGHT_AGL_M` above the ground.
+    """
+    from .ground import DemGround, FlatGround, check_reference
+
+    if dem is not None and ground_elevation_m is not None:
+        raise GroundError(
+            "both --dem and --ground-elevation-m were given; give one (the DEM for uneven ground, the "
+            "elevation for flat ground)"
+        )
+    for name, value in (
+        ("ground_elevation_m", ground_elevation_m),
+        ("takeoff_elevation_m", takeoff_elevation_m),
+    ):
+        if value is not None and not (math.isfinite(value) and -500.0 <= value <= 9000.0):
+            raise GroundError(f"{name} = {value} is outside -500..9000 m above mean sea level")
+    ref = frames.alt_reference
+    ground: Ground
+    if ref in (AltitudeReference.AMSL, AltitudeReference.ELLIPSOID):
+        what = "above mean sea level" if ref is AltitudeReference.AMSL else "above the WGS84 ellipsoid"
+        if dem is not None:
+            ground = DemGround.from_geotiff(Path(dem), reference=AltitudeReference.AMSL)
+            description = f"DEM {Path(dem).name} (heights AMSL); camera altitudes {what}"
+        elif ground_elevation_m is not None or takeoff_elevation_m is not None:
+            given = ground_elevation_m if ground_elevation_m is not None else takeoff_elevation_m
+            assert given is not None
+            where = "the ground" if ground_elevation_m is not None else "the take-off point"
+            ground = FlatGround(elevation_m=given, reference=ref, source=f"elevation of {where}, given")
+            description = f"flat ground at {given:g} m (elevation of {where}, given); camera altitudes {what}"
+        else:
+            median = float(np.median(frames.alt_m)) if len(frames) else float("nan")
+            raise GroundError(
+                f"the camera altitudes are {what} (median {median:.1f} m) and the height above ground is "
+                "unknown; give the ground elevation (--ground-elevation-m, metres AMSL) or a DEM (--dem "
+                "FILE.tif)"
+            )
+    elif ref is AltitudeReference.REL_HOME:
+        if dem is None and ground_elevation_m is None:
+            ground = FlatGround(elevation_m=0.0, reference=ref, source="the take-off point")
+            description = (
+                "flat ground at the take-off point (altitudes are relative to home; ground that rises or "
+                "falls away from home changes the real height: give a DEM to account for it)"
+            )
+        else:
+            if takeoff_elevation_m is None:
+                raise GroundError(
+                    "the camera altitudes are relative to the take-off point; to use "
+                    + ("a DEM" if dem is not None else "a ground elevation")
+                    + " give the take-off elevation above mean sea level too "
+                    "(--takeoff-elevation-m)"
+                )
+            frames = replace(
+                frames,
+                alt_m=frames.alt_m + takeoff_elevation_m,
+                alt_reference=AltitudeReference.AMSL,
+            )
+            if dem is not None:
+                ground = DemGround.from_geotiff(Path(dem), reference=AltitudeReference.AMSL)
+                description = (
+                    f"DEM {Path(dem).name} (heights AMSL); camera altitudes relative to a take-off point at "
+                    f"{takeoff_elevation_m:g} m AMSL"
+                )
+            else:
+                assert ground_elevation_m is not None
+                ground = FlatGround(
+                    elevation_m=ground_elevation_m, reference=AltitudeReference.AMSL, source="given"
+                )
+                description = (
+                    f"flat ground at {ground_elevation_m:g} m AMSL (given); camera altitudes relative to a "
+                    f"take-off point at {takeoff_elevation_m:g} m AMSL"
+                )
+    else:  # AGL
+        if dem is not None or ground_elevation_m is not None:
+            raise GroundError(
+                "the camera altitudes are already above the ground below each frame; drop --dem and "
+                "--ground-elevation-m"
+            )
+        ground = FlatGround(elevation_m=0.0, reference=ref, source="altitudes above ground")
+        description = "camera altitudes above the ground below each frame"
+    check_reference(ground, frames.alt_reference)
+    _check_heights(frames, ground, description)
+    return GroundChoice(ground=ground, frames=frames, description=description)
+
+
+def local_frame_at(lon_deg: float, lat_deg: float) -> LocalFrame:
+    """A transverse Mercator frame (WGS84, scale 1) centred on a point, metres east and north.
+
+    Grid north is true north along its central meridian, so a bearing (a camera's yaw, a
+    flight heading) is a grid bearing to within the meridian convergence a few kilometres
+    away (0.01 deg at 1 km): unlike a UTM zone, whose grid north is off true north by up to
+    3 deg at the zone's edges, which would turn every footprint about its camera. Distances
+    are true to 1e-8 within a few kilometres.
+    """
+    crs = CRS.from_proj4(
+        f"+proj=tmerc +lat_0={lat_deg!r} +lon_0={lon_deg!r} +k=1 +x_0=0 +y_0=0 +datum=WGS84 +units=m +no_defs"
+    )
+    return LocalFrame.from_crs(crs)
+
+
+def frames_local_frame(frames: Frames) -> LocalFrame:
+    """The frame a check of ``frames`` works in: :func:`local_frame_at` their median position."""
+    return local_frame_at(float(np.median(frames.lon_deg)), float(np.median(frames.lat_deg)))
+
+
+def _check_heights(frames: Frames, ground: Ground, description: str) -> None:
+    """Refuse a ground that puts a camera below it or within MIN_HEIGHT_AGL_M of it."""
+    if len(frames) == 0:
+        return
+    frame = frames_local_frame(frames)
+    x, y = frame.to_xy(frames.lon_deg, frames.lat_deg)
+    elevation = np.asarray(ground.elevation_at(x, y, frame), dtype=np.float64)
+    height = frames.alt_m - elevation
+    bad = ~(height >= MIN_HEIGHT_AGL_M)
+    if np.any(bad):
+        k = int(np.flatnonzero(bad)[0])
+        raise GroundError(
+            f"{int(bad.sum())} frame(s) are less than {MIN_HEIGHT_AGL_M:g} m above the ground "
+            f"({description}); e.g. {frames.name[k]} at {frames.alt_m[k]:.1f} m over ground at "
+            f"{elevation[k]:.1f} m: check the ground elevation (metres AMSL) or the DEM"
+        )

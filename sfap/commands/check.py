@@ -1,0 +1,242 @@
+"""`sfap check`: coverage, overlap, B/H, GSD and blur of images or a plan, judged in the field."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import click
+
+from planner.area import build_area, load_polygons
+from planner.camera_db import get_camera
+from planner.outputs import check_output_dir
+from processing.check import CheckResult, Thresholds, run_check
+from processing.inputs import (
+    PlanInfo,
+    frames_from_plan,
+    ground_from_options,
+    image_paths,
+    is_plan_folder,
+    read_image_frames,
+    read_plan_info,
+)
+
+from ..common import dumps_json, echo_table, json_option, overwrite_option, progress
+
+_THRESHOLD_KEYS = tuple(f.name for f in dataclasses.fields(Thresholds))
+
+
+def _thresholds(values: tuple[str, ...]) -> Thresholds:
+    changes: dict[str, float] = {}
+    for item in values:
+        key, sep, text = item.partition("=")
+        key = key.strip()
+        if not sep or key not in _THRESHOLD_KEYS:
+            raise click.BadParameter(
+                f"{item!r}: give KEY=VALUE with KEY one of {', '.join(_THRESHOLD_KEYS)}",
+                param_hint="--threshold",
+            )
+        try:
+            changes[key] = float(text)
+        except ValueError:
+            raise click.BadParameter(
+                f"{item!r}: {text!r} is not a number", param_hint="--threshold"
+            ) from None
+    return Thresholds(**changes)
+
+
+@click.command("check")
+@click.argument(
+    "source",
+    metavar="IMAGES_OR_PLAN",
+    type=click.Path(exists=True, file_okay=False, path_type=Path),
+)
+@click.option(
+    "--plan",
+    "plan_dir",
+    type=click.Path(exists=True, file_okay=False, path_type=Path),
+    help="Plan folder (written by `sfap plan`) the images were flown from: its area is judged and "
+    "its overlaps are the reference.",
+)
+@click.option(
+    "--area",
+    "area_file",
+    type=click.Path(exists=True, dir_okay=False, path_type=Path),
+    help="Area to judge (GeoJSON or KML polygon, WGS84). Default: the plan's area, else the block "
+    "the frames' centres span (convex hull).",
+)
+@click.option(
+    "--dem",
+    type=click.Path(exists=True, dir_okay=False, path_type=Path),
+    help="Ground elevations, GeoTIFF in any CRS, metres above mean sea level.",
+)
+@click.option(
+    "--ground-elevation-m",
+    type=float,
+    default=None,
+    help="Flat ground at this elevation, metres above mean sea level.",
+)
+@click.option(
+    "--takeoff-elevation-m",
+    type=float,
+    default=None,
+    help="Elevation of the take-off point, metres AMSL (for altitudes relative to home "
+    "with --dem or --ground-elevation-m).",
+)
+@click.option(
+    "--camera",
+    "camera_id",
+    default=None,
+    help="Camera id from `sfap cameras` (default: matched from the images' EXIF).",
+)
+@click.option(
+    "--cell-m",
+    type=float,
+    default=None,
+    help="Raster cell size, metres (default: 1/50 of a frame's short side, rounded).",
+)
+@click.option(
+    "--threshold",
+    "threshold_items",
+    multiple=True,
+    metavar="KEY=VALUE",
+    help="Change a pass threshold, e.g. --threshold min_seen_3_pct=80 (repeatable; keys: "
+    + ", ".join(_THRESHOLD_KEYS)
+    + ").",
+)
+@click.option("--refly", is_flag=True, help="Also write a mission covering the gaps into REPORT/refly/.")
+@click.option(
+    "-o",
+    "--output",
+    "out_dir",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=None,
+    help="Report folder: report.html, report.json, coverage.tif, gaps.geojson, "
+    "footprints.geojson and the maps (created; must be empty unless --overwrite).",
+)
+@overwrite_option
+@json_option
+@click.option("--no-progress", is_flag=True, help="No progress bar.")
+def command(
+    source: Path,
+    plan_dir: Path | None,
+    area_file: Path | None,
+    dem: Path | None,
+    ground_elevation_m: float | None,
+    takeoff_elevation_m: float | None,
+    camera_id: str | None,
+    cell_m: float | None,
+    threshold_items: tuple[str, ...],
+    refly: bool,
+    out_dir: Path | None,
+    overwrite: bool,
+    as_json: bool,
+    no_progress: bool,
+) -> None:
+    """Check the frames in IMAGES_OR_PLAN (a folder of geotagged images, or a plan folder
+    written by `sfap plan` to check the plan itself) before leaving the field: views per
+    ground cell, gaps, forward and side overlap, base-height ratios, GSD, motion blur.
+
+    Images' EXIF altitudes are above mean sea level: give --ground-elevation-m or --dem (the
+    check never guesses the height above ground). A plan's altitudes are relative to home
+    (flat ground at home unless --dem with --takeoff-elevation-m).
+
+    Exit code 0 when every threshold is met, 1 when the check fails (the reasons are
+    printed), 2 for bad options or inputs.
+
+    Example: sfap check photos/ --plan out/gully --ground-elevation-m 412 -o report/ --refly
+    """
+    if refly and out_dir is None:
+        raise click.UsageError("--refly writes the mission into the report folder: give -o REPORT/")
+    thresholds = _thresholds(threshold_items)
+    if out_dir is not None:
+        check_output_dir(out_dir, overwrite=overwrite)  # refuse before minutes of work
+    camera = get_camera(camera_id) if camera_id else None
+    show_progress = not no_progress and not as_json
+    notes: tuple[str, ...] = ()
+    plan: PlanInfo | None
+    unpositioned: tuple[str, ...] = ()
+    if is_plan_folder(source):
+        if plan_dir is not None:
+            raise click.UsageError(f"{source} is a plan folder already; drop --plan")
+        frames, plan = frames_from_plan(source, camera=camera)
+        notes = ("frames are the plan's stations (attitude as planned)",)
+    else:
+        plan = read_plan_info(plan_dir) if plan_dir is not None else None
+        with progress("reading images", len(image_paths(source)), enabled=show_progress) as advance:
+            images = read_image_frames(
+                source, camera=camera, fallback_camera=plan.camera if plan else None, progress=advance
+            )
+        frames, notes, unpositioned = (
+            images.frames,
+            (images.camera_source, *images.notes),
+            images.unpositioned,
+        )
+    choice = ground_from_options(
+        frames=frames,
+        dem=dem,
+        ground_elevation_m=ground_elevation_m,
+        takeoff_elevation_m=takeoff_elevation_m,
+    )
+    area = None
+    if area_file is not None:
+        area, _ = build_area(load_polygons(area_file), [])
+    with progress("counting views", 100, enabled=show_progress) as advance:
+        done = [0]
+
+        def on_progress(k: int, total: int) -> None:
+            step = int(100 * k / max(total, 1)) - done[0]
+            if step > 0:
+                done[0] += step
+                advance(step)
+
+        result = run_check(
+            choice.frames,
+            ground=choice.ground,
+            area=area,
+            plan=plan,
+            cell_m=cell_m,
+            thresholds=thresholds,
+            progress=on_progress,
+            ground_description=choice.description,
+            notes=notes,
+            unpositioned=unpositioned,
+        )
+    refly_plan = None
+    if refly and result.gaps:
+        from processing.refly import refly_mission, refly_parameters
+
+        refly_plan = refly_mission([g.polygon_lonlat for g in result.gaps], refly_parameters(result))
+    if out_dir is not None:
+        from processing.report import write_report
+
+        write_report(result, out_dir, overwrite=overwrite, refly=refly_plan)
+    _present(result, out_dir, refly, refly_plan is not None, as_json)
+    if not result.passed:
+        click.get_current_context().exit(result.exit_code)
+
+
+def _present(
+    result: CheckResult, out_dir: Path | None, refly: bool, wrote_refly: bool, as_json: bool
+) -> None:
+    if as_json:
+        data = result.as_dict()
+        data.pop("per_frame", None)
+        data["report_dir"] = str(out_dir) if out_dir is not None else None
+        data["refly_dir"] = str(out_dir / "refly") if wrote_refly and out_dir is not None else None
+        click.echo(dumps_json(data))
+        return
+    verdict = "PASS" if result.passed else "FAIL"
+    click.echo(f"{verdict}: {len(result.frames)} frames checked")
+    for reason in result.reasons:
+        click.echo(f"  - {reason}")
+    echo_table(result.key_figures())
+    for warning in result.warnings:
+        click.echo(f"warning: {warning}", err=True)
+    if out_dir is not None:
+        click.echo(f"report: {out_dir / 'report.html'}")
+    if refly:
+        if wrote_refly and out_dir is not None:
+            click.echo(f"re-fly mission: {out_dir / 'refly' / 'mission.plan'}")
+        else:
+            click.echo("re-fly mission: none needed (no gap)")
