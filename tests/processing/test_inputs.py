@@ -17,6 +17,7 @@ import pytest
 import rasterio
 from geographiclib.geodesic import Geodesic
 from rasterio.transform import Affine
+from shared_data import SHARED_DATA
 
 from acquisition.exif import GeoTag, read_tags, strip_gps, write_geotag
 from planner.camera import Orientation
@@ -29,7 +30,6 @@ from processing.footprints import project_footprints
 from processing.frames import AltitudeReference, AttitudeSource
 from processing.ground import DemGround, FlatGround
 from processing.inputs import (
-from shared_data import SHARED_DATA
     frames_from_images,
     frames_from_plan,
     frames_from_track,
@@ -41,7 +41,7 @@ from shared_data import SHARED_DATA
     track_heading_deg,
 )
 
-GARFIELD = (SHARED_DATA / "garfield_rgb")
+GARFIELD = SHARED_DATA / "garfield_rgb"
 MISSIONS = Path(__file__).resolve().parents[2] / "missions"
 #: Ground elevation used for the Garfield frames, metres AMSL: the images record no height
 #: above ground; Garfield Heights (Ohio) lies at 253 m where it borders Cleveland, which is where
