@@ -275,7 +275,8 @@ def flight_lines(
 ) -> NDArray[np.int64]:
     """The flight line of each frame (0, 1, ... in capture order).
 
-    The plan's ``line_index`` when the frames carry one. Otherwise, in capture order, the step
+    The plan's ``line_index`` when the frames carry one (split where a line is interrupted
+    by more than ``max_jump_ratio`` x the median step). Otherwise, in capture order, the step
     from one frame to the next stays within a line when it is at most ``max_jump_ratio`` x the
     median step and its heading is within ``max_turn_deg`` of the previous or the next step's
     (a frame taken in a turn agrees with neither and becomes a line of its own); two kept steps
@@ -283,7 +284,20 @@ def flight_lines(
     """
     n = len(frames)
     if frames.line_index is not None:
-        return np.asarray(frames.line_index, dtype=np.int64)
+        # The plan's lines, split where one is interrupted (a notch, a hole): the two pieces of
+        # a line are not neighbours along it.
+        given = np.asarray(frames.line_index, dtype=np.int64)
+        if n < 2:
+            return given
+        order = capture_order(frames)
+        step = np.diff(footprints.camera_xyz_m[order, :2], axis=0)
+        dist = np.hypot(step[:, 0], step[:, 1])
+        same_line = np.diff(given[order]) == 0
+        median_step = float(np.median(dist[same_line])) if same_line.any() else 0.0
+        breaks = ~same_line | (dist > max_jump_ratio * median_step)
+        pieces = np.zeros(n, dtype=np.int64)
+        pieces[order] = np.concatenate([[0], np.cumsum(breaks)])
+        return pieces
     lines = np.zeros(n, dtype=np.int64)
     if n < 2:
         return lines
