@@ -77,7 +77,9 @@ class LocalFrame:
         x1, y1 = self.to_xy(step["lon2"], step["lat2"])
         return float(np.degrees(np.arctan2(x1 - x0, y1 - y0)))
 
-    def true_north_grid_bearing_deg_array(self, lon_deg: ArrayLike, lat_deg: ArrayLike) -> NDArray[np.float64]:
+    def true_north_grid_bearing_deg_array(
+        self, lon_deg: ArrayLike, lat_deg: ArrayLike
+    ) -> NDArray[np.float64]:
         """:meth:`true_north_grid_bearing_deg` at many points (finite difference along the
         meridian, 1e-5 deg = about 1 m)."""
         lon = np.atleast_1d(np.asarray(lon_deg, float))

@@ -338,7 +338,7 @@ def _slice_by_height(piece: Polygon, height: float) -> list[Polygon]:
         return [piece]
     n = math.ceil((v1 - v0) / height)
     step = (v1 - v0) / n
-    out = []
+    out: list[Polygon] = []
     for k in range(n):
         part = piece.intersection(box(u0 - 1, v0 + k * step, u1 + 1, v0 + (k + 1) * step))
         out.extend(p for p in _polygons(part) if p.area > _RESIDUAL_NOISE_M2)
