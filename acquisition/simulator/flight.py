@@ -150,8 +150,7 @@ class _SmoothNoise:
 
     def __init__(self, rng: random.Random, sigma: float, n: int = 4) -> None:
         self.terms = [
-            (rng.uniform(8.0, 90.0), rng.uniform(0.0, 2 * math.pi), rng.uniform(0.5, 1.0))
-            for _ in range(n)
+            (rng.uniform(8.0, 90.0), rng.uniform(0.0, 2 * math.pi), rng.uniform(0.5, 1.0)) for _ in range(n)
         ]
         power = sum(a * a / 2 for _, _, a in self.terms)
         self.scale = sigma / math.sqrt(power) if power > 0 else 0.0
@@ -217,8 +216,7 @@ class FlightSimulator:
         self.gps_fix_s = gps_fix_s
         self.boot_utc_s = boot_utc_s
         crs = CRS.from_proj4(
-            f"+proj=aeqd +lat_0={home.lat_deg!r} +lon_0={home.lon_deg!r} "
-            "+datum=WGS84 +units=m +no_defs"
+            f"+proj=aeqd +lat_0={home.lat_deg!r} +lon_0={home.lon_deg!r} +datum=WGS84 +units=m +no_defs"
         )
         self.frame = LocalFrame.from_crs(crs)
         # scalar transforms, several times faster than the array API, for the telemetry
@@ -627,9 +625,7 @@ class FlightSimulator:
                 )
             )
 
-    def _distance_trigger(
-        self, start: tuple[float, float], end: tuple[float, float]
-    ) -> list[float]:
+    def _distance_trigger(self, start: tuple[float, float], end: tuple[float, float]) -> list[float]:
         """Fractions of the piece start->end at which distance triggering fires (exact)."""
         d = self.camera.trigger_distance_m
         if d <= 0 or not self.gps_has_fix:

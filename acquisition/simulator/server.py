@@ -125,9 +125,7 @@ class FaultConfig:
         if not (0.0 <= self.latency_s <= 60.0):
             raise InputError(f"FaultConfig.latency_s is {self.latency_s}; give 0-60 s")
         if self.refuse is not None and self.refuse not in {r.value for r in Refusal}:
-            raise InputError(
-                f"FaultConfig.refuse is {self.refuse!r}; use None, 'no_space' or 'invalid'"
-            )
+            raise InputError(f"FaultConfig.refuse is {self.refuse!r}; use None, 'no_space' or 'invalid'")
 
 
 @dataclass
@@ -646,9 +644,7 @@ def _item_int_message(item: WireItem, seq: int, sysid: int, compid: int, mission
     )
 
 
-def _item_float_message(
-    item: WireItem, seq: int, sysid: int, compid: int, mission_type: int
-) -> Any:
+def _item_float_message(item: WireItem, seq: int, sysid: int, compid: int, mission_type: int) -> Any:
     if item.frame in _GLOBAL_FRAMES:
         x, y = _f32(item.x * 1e-7), _f32(item.y * 1e-7)
     else:
@@ -768,9 +764,7 @@ class SimulatedVehicle:
         if link_baud is not None and link_baud <= 0:
             raise InputError(f"link_baud is {link_baud}; give a positive baud rate or None")
         self.link_baud = link_baud
-        self._send_pipe = _FaultyPipe(
-            self.faults, random.Random(self.faults.seed * 2 + 1), baud=link_baud
-        )
+        self._send_pipe = _FaultyPipe(self.faults, random.Random(self.faults.seed * 2 + 1), baud=link_baud)
         self._recv_pipe = _FaultyPipe(
             self.faults,
             random.Random(self.faults.seed * 2 + 2),
@@ -1047,9 +1041,7 @@ class SimulatedVehicle:
 
     def _ack(self, msg: Any, result: int, mission_type: int) -> None:
         self._send(
-            M.MAVLink_mission_ack_message(
-                msg.get_srcSystem(), msg.get_srcComponent(), result, mission_type
-            )
+            M.MAVLink_mission_ack_message(msg.get_srcSystem(), msg.get_srcComponent(), result, mission_type)
         )
 
     def _request(self, upload: _Upload) -> None:
@@ -1217,9 +1209,7 @@ class SimulatedVehicle:
         self._request(up)
 
     def _finish(self, msg: Any, up: _Upload, result: int) -> None:
-        self._completed = _Completed(
-            up.mission_type, up.count, up.sysid, up.compid, result, time.monotonic()
-        )
+        self._completed = _Completed(up.mission_type, up.count, up.sysid, up.compid, result, time.monotonic())
         self._mission_changed(up.mission_type)
         self._ack(msg, result, up.mission_type)
         log.info(
@@ -1257,9 +1247,7 @@ class SimulatedVehicle:
             return
         count = len(self._items_for_readback(mission_type))
         self._send(
-            M.MAVLink_mission_count_message(
-                msg.get_srcSystem(), msg.get_srcComponent(), count, mission_type
-            )
+            M.MAVLink_mission_count_message(msg.get_srcSystem(), msg.get_srcComponent(), count, mission_type)
         )
 
     def _answer_request(self, msg: Any, as_int: bool) -> None:
@@ -1337,9 +1325,7 @@ class SimulatedVehicle:
 
     def _command_ack(self, msg: Any, command: int, result: int) -> None:
         self._send(
-            M.MAVLink_command_ack_message(
-                command, result, 0, 0, msg.get_srcSystem(), msg.get_srcComponent()
-            )
+            M.MAVLink_command_ack_message(command, result, 0, 0, msg.get_srcSystem(), msg.get_srcComponent())
         )
 
     def _on_command_long(self, msg: Any) -> None:

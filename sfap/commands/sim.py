@@ -173,9 +173,7 @@ def command(
         )
         click.echo(f"connect a ground station to {vehicle.url_for_client}", err=True)
         if mission is not None:
-            click.echo(
-                f"mission preloaded: {len(mission.items)} items from {mission_path}", err=True
-            )
+            click.echo(f"mission preloaded: {len(mission.items)} items from {mission_path}", err=True)
         if tlog_path is not None:
             click.echo(f"writing what it sends to {tlog_path}", err=True)
         if auto_start:

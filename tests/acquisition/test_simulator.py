@@ -402,9 +402,7 @@ def test_download_is_denied_during_an_upload(autopilot: Autopilot) -> None:
 
 
 def test_ardupilot_rules_for_plane_copter_and_nan() -> None:
-    def wire(
-        command: int, frame: int, p: tuple[float, float, float, float], z: float = 50.0
-    ) -> WireItem:
+    def wire(command: int, frame: int, p: tuple[float, float, float, float], z: float = 50.0) -> WireItem:
         return WireItem(frame, command, p[0], p[1], p[2], p[3], 416500000, -8890000, z)
 
     wp = wire(16, 6, (7.9, 300.0, 12.6, 90.0), z=100.999)
@@ -417,18 +415,14 @@ def test_ardupilot_rules_for_plane_copter_and_nan() -> None:
     assert copter.z == pytest.approx(100.99, abs=1e-5)
     assert (copter.x, copter.y) == (416500000, -8890000)
     # Yaw NaN is allowed on a waypoint, NaN elsewhere is refused by param number
-    assert isinstance(
-        ardupilot_store(wire(16, 3, (0, 0, 0, math.nan)), VehicleType.MULTIROTOR), WireItem
-    )
+    assert isinstance(ardupilot_store(wire(16, 3, (0, 0, 0, math.nan)), VehicleType.MULTIROTOR), WireItem)
     gimbal = MissionItem.gimbal_manager_pitch_yaw(-90.0, 0.0)  # params 3-4 NaN ("unchanged")
     msg = to_mission_item_int(gimbal, 1, 1, 1, 0)
     from acquisition.simulator.server import wire_item_from_message
 
     assert ardupilot_store(wire_item_from_message(msg), VehicleType.MULTIROTOR) == INVALID_PARAM3
     mount = ardupilot_store(
-        wire_item_from_message(
-            to_mission_item_int(MissionItem.gimbal_pitch_yaw(-90, 0), 1, 1, 1, 0)
-        ),
+        wire_item_from_message(to_mission_item_int(MissionItem.gimbal_pitch_yaw(-90, 0), 1, 1, 1, 0)),
         VehicleType.MULTIROTOR,
     )
     assert isinstance(mount, WireItem)
@@ -630,9 +624,7 @@ def test_transfer_through_loss_duplication_and_reordering(autopilot: Autopilot) 
             assert len(stored) == len(items)
         else:
             assert ack == ACCEPTED
-        assert [round(i.lat_deg * 1e7) for i in stored[1:]] == [
-            round(i.lat_deg * 1e7) for i in items[1:]
-        ]
+        assert [round(i.lat_deg * 1e7) for i in stored[1:]] == [round(i.lat_deg * 1e7) for i in items[1:]]
         back = [from_mission_item(m) for m in gcs.download(retries=400)]
         assert back == stored
         assert v.receive_stats.dropped > 0 and v.send_stats.duplicated > 0
@@ -766,9 +758,7 @@ def fly(sim: FlightSimulator, items: list[MissionItem], dt_s: float) -> list[Any
     return msgs
 
 
-def expected_stations(
-    ends: list[tuple[float, float]], trigger_m: float
-) -> list[tuple[float, float]]:
+def expected_stations(ends: list[tuple[float, float]], trigger_m: float) -> list[tuple[float, float]]:
     """Photo positions of ArduPilot's rule on a line: the start, then every trigger_m."""
     out = []
     for (x0, y0), (x1, y1) in (ends[0:2], ends[2:4]):
@@ -816,9 +806,7 @@ def test_two_line_survey_triggers_where_geometry_says(dt_s: float) -> None:
 def test_flight_is_independent_of_the_step_size() -> None:
     runs = []
     for dt in (0.02, 1.3):
-        sim = FlightSimulator(
-            autopilot=Autopilot.ARDUPILOT, vehicle_type=VehicleType.MULTIROTOR, home=HOME
-        )
+        sim = FlightSimulator(autopilot=Autopilot.ARDUPILOT, vehicle_type=VehicleType.MULTIROTOR, home=HOME)
         items, _ = two_line_survey(sim, 17.0, 120.0, 25.0, 0.0)
         msgs = fly(sim, items, dt)
         shots = [(m.lat, m.lng, m.time_usec) for m in msgs if m.get_type() == "CAMERA_FEEDBACK"]
@@ -837,9 +825,7 @@ def test_flight_is_independent_of_the_step_size() -> None:
 
 
 def test_telemetry_rates_and_fields() -> None:
-    sim = FlightSimulator(
-        autopilot=Autopilot.ARDUPILOT, vehicle_type=VehicleType.MULTIROTOR, home=HOME
-    )
+    sim = FlightSimulator(autopilot=Autopilot.ARDUPILOT, vehicle_type=VehicleType.MULTIROTOR, home=HOME)
     items, _ = two_line_survey(sim, 20.0, 100.0, 20.0, 0.0)
     msgs = fly(sim, items, 0.5)
     counts = Counter(m.get_type() for m in msgs)
@@ -883,9 +869,7 @@ def test_px4_camera_messages_and_gimbal() -> None:
 
 
 def test_fixed_wing_ardupilot_mount_status() -> None:
-    sim = FlightSimulator(
-        autopilot=Autopilot.ARDUPILOT, vehicle_type=VehicleType.FIXED_WING, home=HOME
-    )
+    sim = FlightSimulator(autopilot=Autopilot.ARDUPILOT, vehicle_type=VehicleType.FIXED_WING, home=HOME)
     items, _ = two_line_survey(sim, 30.0, 310.0, 60.0, hold_s=5.0)
     items.insert(2, MissionItem.gimbal_pitch_yaw(-80.0, 0.0))
     sim.set_mission(items)
@@ -918,13 +902,9 @@ def read_tlog(path: Path) -> list[Any]:
 
 
 @pytest.mark.parametrize("autopilot", [Autopilot.ARDUPILOT, Autopilot.PX4])
-def test_flight_through_the_link_writes_a_readable_tlog(
-    autopilot: Autopilot, tmp_path: Path
-) -> None:
+def test_flight_through_the_link_writes_a_readable_tlog(autopilot: Autopilot, tmp_path: Path) -> None:
     tlog = tmp_path / "flight.tlog"
-    with SimulatedVehicle(
-        autopilot=autopilot, speedup=100, tlog_path=tlog, home=HOME, boot_delay_s=0.0
-    ) as v:
+    with SimulatedVehicle(autopilot=autopilot, speedup=100, tlog_path=tlog, home=HOME, boot_delay_s=0.0) as v:
         items, ends = two_line_survey(v.flight, 20.0, 190.0, 30.0, hold_s=2.0)
         if autopilot is Autopilot.PX4:
             items = items[1:]

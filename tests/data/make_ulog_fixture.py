@@ -215,9 +215,7 @@ def build_ulog() -> bytes:
             },
         )
     # A logged string, as PX4 writes them (level '6' = info).
-    records.append(
-        (5_000_000, -1, _msg(b"L", b"6" + struct.pack("<Q", 5_000_000) + b"sfap fixture"))
-    )
+    records.append((5_000_000, -1, _msg(b"L", b"6" + struct.pack("<Q", 5_000_000) + b"sfap fixture")))
     for _, _, m in sorted(records, key=lambda r: (r[0], r[1])):
         out += m
     return bytes(out)
