@@ -84,7 +84,7 @@ def _thin(n: int, max_count: int) -> tuple[NDArray[np.int64], int]:
     return np.arange(0, n, step, dtype=np.int64), step
 
 
-def _polygon_path(geom: Polygon | MultiPolygon, ox: float, oy: float) -> MplPath | None:
+def polygon_path(geom: Polygon | MultiPolygon, ox: float, oy: float) -> MplPath | None:
     """A compound matplotlib path (exteriors and holes) of a polygon, shifted by -origin."""
     parts = list(geom.geoms) if isinstance(geom, MultiPolygon) else [geom]
     vertices: list[NDArray[np.float64]] = []
@@ -205,13 +205,13 @@ def render_map_figure(
     ax.set_facecolor("white")
     handles: list[Patch | Line2D] = []
 
-    area_path = _polygon_path(plan.area_xy, ox, oy)
+    area_path = polygon_path(plan.area_xy, ox, oy)
     if area_path is not None:
         ax.add_patch(PathPatch(area_path, facecolor=_AREA_FACE, edgecolor=_AREA_EDGE, lw=1.2, zorder=1))
     handles.append(Patch(facecolor=_AREA_FACE, edgecolor=_AREA_EDGE, label="area to cover"))
     if plan.exclusions_xy:
         for zone in plan.exclusions_xy:
-            zone_path = _polygon_path(zone, ox, oy)
+            zone_path = polygon_path(zone, ox, oy)
             if zone_path is not None:
                 ax.add_patch(
                     PathPatch(

@@ -34,12 +34,11 @@ from matplotlib.collections import PolyCollection
 from matplotlib.colors import BoundaryNorm, ListedColormap
 from matplotlib.figure import Figure
 from matplotlib.patches import PathPatch, Rectangle
-from matplotlib.path import Path as MplPath
 from numpy.typing import NDArray
-from shapely.geometry import MultiPolygon, Polygon, mapping
+from shapely.geometry import Polygon, mapping
 from shapely.geometry.polygon import orient
 
-from planner.mapplot import scale_bar_length_m
+from planner.mapplot import polygon_path, scale_bar_length_m
 from planner.outputs import atomic_write_bytes, atomic_write_text, staged_output_dir
 from planner.plan import SurveyPlan
 
@@ -68,25 +67,6 @@ _DPI = 110
 
 
 # --- maps ----------------------------------------------------------------------------------------
-
-
-def _polygon_path(geom: Polygon | MultiPolygon, ox: float, oy: float) -> MplPath | None:
-    parts = list(geom.geoms) if isinstance(geom, MultiPolygon) else [geom]
-    vertices: list[NDArray[np.float64]] = []
-    codes: list[NDArray[np.uint8]] = []
-    for part in parts:
-        if part.is_empty:
-            continue
-        for ring in (part.exterior, *part.interiors):
-            xy = np.asarray(ring.coords, dtype=np.float64) - (ox, oy)
-            c = np.full(len(xy), MplPath.LINETO, dtype=np.uint8)
-            c[0] = MplPath.MOVETO
-            c[-1] = MplPath.CLOSEPOLY
-            vertices.append(xy)
-            codes.append(c)
-    if not vertices:
-        return None
-    return MplPath(np.concatenate(vertices), np.concatenate(codes))
 
 
 class _Map:
@@ -124,7 +104,7 @@ class _Map:
         return (west - ox, east - ox, south - oy, north - oy)
 
     def area_outline(self, colour: str = "black", width: float = 1.4) -> None:
-        path = _polygon_path(self.result.area_xy, *self.origin)
+        path = polygon_path(self.result.area_xy, *self.origin)
         if path is not None:
             self.ax.add_patch(PathPatch(path, facecolor="none", edgecolor=colour, lw=width, zorder=6))
 
@@ -221,12 +201,12 @@ def gaps_png(result: CheckResult) -> bytes:
     """The area, every footprint's outline and the gaps in red, numbered as in the table."""
     title = f"Gaps: {len(result.gaps)}" + (f", {result.gap_area_m2:,.0f} m2" if result.gaps else " (none)")
     m = _Map(result, title)
-    path = _polygon_path(result.area_xy, *m.origin)
+    path = polygon_path(result.area_xy, *m.origin)
     if path is not None:
         m.ax.add_patch(PathPatch(path, facecolor="#e8f5e9", edgecolor="none", zorder=1))
     m.footprints()
     for gap in result.gaps:
-        gp = _polygon_path(gap.polygon_xy, *m.origin)
+        gp = polygon_path(gap.polygon_xy, *m.origin)
         if gp is not None:
             m.ax.add_patch(
                 PathPatch(gp, facecolor=_GAP_COLOUR, edgecolor="#7f0000", lw=0.8, alpha=0.85, zorder=5)
