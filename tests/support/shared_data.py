@@ -6,5 +6,5 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 SHARED_DATA = Path(os.environ.get("SFAP_SHARED_DATA", REPO.parent / "shared" / "data"))

@@ -1,0 +1,732 @@
+"""The in-flight monitor: FlightRecorder on synthetic MAVLink messages (dedup, link quality,
+missed stations, durable files), then real flights of planned missions in the simulator,
+one of them through a link that is cut and restored."""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import json
+import math
+import select
+import socket
+import struct
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+from pyproj import Geod
+
+from acquisition.link import Link
+from acquisition.monitor import (
+    CSV_COLUMNS,
+    FlightRecorder,
+    MonitorResult,
+    MonitorState,
+    StationPlan,
+    StopReason,
+    load_station_plan,
+    monitor,
+)
+from acquisition.simulator.server import SimulatedVehicle
+from acquisition.telemetry.tlog import read_tlog
+from acquisition.transfer import upload_mission
+from planner.errors import OutputExistsError
+from planner.export import write_outputs
+from planner.mission import Autopilot
+from planner.plan import SurveyPlan
+from planner.spec import load_spec
+from planner.survey import plan_survey
+
+ROOT = Path(__file__).resolve().parents[2]
+GEOD = Geod(ellps="WGS84")
+LAT0, LON0 = 42.2012, -1.4866
+T0 = 1_763_800_000.0  # a UTC time (2025-11-22) for synthetic messages
+
+
+# --- synthetic messages -------------------------------------------------------------------------
+
+
+class Wire:
+    """Packs messages as one sender would and parses them back with pymavlink, so each one is
+    a received message (with its seq, source and bytes)."""
+
+    def __init__(self, system: int = 1, component: int = 1) -> None:
+        self.encoder = mavlink2.MAVLink(None, srcSystem=system, srcComponent=component)
+        self.decoder = mavlink2.MAVLink(None)
+        self.seq = 0
+
+    def __call__(self, msg: Any, seq: int | None = None) -> Any:
+        self.encoder.seq = self.seq if seq is None else seq
+        self.seq = (self.encoder.seq + 1) % 256
+        data = msg.pack(self.encoder)
+        parsed = self.decoder.parse_buffer(bytes(data))
+        assert parsed is not None and len(parsed) == 1
+        return parsed[0]
+
+
+def heartbeat(armed: bool) -> Any:
+    return mavlink2.MAVLink_heartbeat_message(2, 3, 1 | (128 if armed else 0), 3, 4, 3)
+
+
+def system_time(boot_s: float) -> Any:
+    return mavlink2.MAVLink_system_time_message(round((T0 + boot_s) * 1e6), round(boot_s * 1e3))
+
+
+def offset(east_m: float, north_m: float) -> tuple[float, float]:
+    """(lat, lon) of a point east/north of (LAT0, LON0), geodesically."""
+    dist = math.hypot(east_m, north_m)
+    az = math.degrees(math.atan2(east_m, north_m))
+    lon, lat, _ = GEOD.fwd(LON0, LAT0, az, dist)
+    return lat, lon
+
+
+def position(boot_s: float, east_m: float, north_m: float, v_east: float, v_north: float) -> Any:
+    lat, lon = offset(east_m, north_m)
+    return mavlink2.MAVLink_global_position_int_message(
+        round(boot_s * 1e3),
+        round(lat * 1e7),
+        round(lon * 1e7),
+        80_000,
+        70_000,
+        round(v_north * 100),
+        round(v_east * 100),
+        0,
+        9000,
+    )
+
+
+def feedback(boot_s: float, index: int, east_m: float, north_m: float) -> Any:
+    lat, lon = offset(east_m, north_m)
+    return mavlink2.MAVLink_camera_feedback_message(
+        round((T0 + boot_s) * 1e6), 1, 0, index, round(lat * 1e7), round(lon * 1e7),
+        80.0, 70.0, 1.5, -2.0, 91.0, 0.0, 0, 0,
+    )  # fmt: skip
+
+
+def line_plan(legs: list[tuple[float, float, int]], spacing_m: float = 10.0) -> StationPlan:
+    """Stations along east-west legs: (north_m, heading_deg, count) each, from east 0 m."""
+    lat, lon, pass_, line, heading = [], [], [], [], []
+    for k, (north, head, count) in enumerate(legs):
+        for i in range(count):
+            east = i * spacing_m if head == 90.0 else (count - 1 - i) * spacing_m
+            la, lo = offset(east, north)
+            lat.append(la)
+            lon.append(lo)
+            pass_.append(0)
+            line.append(k)
+            heading.append(head)
+    n = len(lat)
+    return StationPlan(
+        name="synthetic",
+        lat_deg=np.array(lat),
+        lon_deg=np.array(lon),
+        pass_index=np.array(pass_, dtype=np.int64),
+        line_index=np.array(line, dtype=np.int64),
+        heading_deg=np.array(heading),
+        match_radius_m=np.full(n, spacing_m / 2),
+        trigger_distance_m=spacing_m,
+    )
+
+
+def read_csv(path: Path) -> list[dict[str, str]]:
+    with path.open(newline="", encoding="utf-8") as handle:
+        return list(csv.DictReader(handle))
+
+
+# --- recorder: files ----------------------------------------------------------------------------
+
+
+def test_tlog_is_stamped_packets_that_read_back_and_the_csv_matches(tmp_path: Path) -> None:
+    wire = Wire()
+    sent: list[tuple[float, Any]] = []
+    with FlightRecorder(tmp_path / "rec") as rec:
+        for k in range(30):
+            t = k * 0.1
+            for msg in (system_time(t), heartbeat(True), position(t, 5 * t, 0, 5, 0)):
+                received = wire(msg)
+                sent.append((T0 + t, received))
+                rec.record(received, T0 + t)
+            if k % 10 == 5:
+                received = wire(feedback(t, k // 10 + 1, 5 * t, 0))
+                sent.append((T0 + t, received))
+                rec.record(received, T0 + t)
+    data = (tmp_path / "rec" / "flight.tlog").read_bytes()
+    expected = b"".join(struct.pack(">Q", round(t * 1e6)) + msg.get_msgbuf() for t, msg in sent)
+    assert data == expected  # byte for byte what MAVProxy/QGC write
+    flight = read_tlog(tmp_path / "rec" / "flight.tlog")
+    assert flight.events is not None and len(flight.events) == 3
+    rows = read_csv(tmp_path / "rec" / "triggers.csv")
+    assert tuple(rows[0]) == CSV_COLUMNS
+    ev = flight.events
+    for i, row in enumerate(rows):
+        assert int(row["seq"]) == ev.seq[i]
+        assert float(row["time_utc_s"]) == pytest.approx(ev.time_utc_s[i], abs=1e-6)
+        assert ev.lat_deg is not None and ev.lon_deg is not None and ev.yaw_deg is not None
+        assert float(row["lat_deg"]) == pytest.approx(ev.lat_deg[i], abs=1e-9)
+        assert float(row["lon_deg"]) == pytest.approx(ev.lon_deg[i], abs=1e-9)
+        assert float(row["yaw_deg"]) == pytest.approx(ev.yaw_deg[i], abs=1e-3)
+        assert row["source"] == "CAMERA_FEEDBACK"
+    summary = json.loads((tmp_path / "rec" / "monitor.json").read_text())
+    assert summary["photos_taken"] == 3 and summary["link_quality_pct"] == 100.0
+
+
+def test_files_are_durable_while_recording_and_csv_only_grows(tmp_path: Path) -> None:
+    wire = Wire()
+    rec = FlightRecorder(tmp_path / "rec")
+    csv_path = tmp_path / "rec" / "triggers.csv"
+    sizes = [csv_path.stat().st_size]
+    heads: list[bytes] = [csv_path.read_bytes()]
+    rec.record(wire(system_time(0.0)), T0)
+    for k in range(1, 4):
+        rec.record(wire(feedback(k, k, 10 * k, 0)), T0 + k)
+        # read by another handle while the recorder is open: the row is already there
+        now = csv_path.read_bytes()
+        assert now.startswith(heads[-1]) and len(now) > sizes[-1]
+        assert now.count(b"\n") == k + 1
+        heads.append(now)
+        sizes.append(len(now))
+    # the tlog is readable mid-recording, every message in it
+    flight = read_tlog(tmp_path / "rec" / "flight.tlog")
+    assert flight.events is not None and list(flight.events.seq) == [1, 2, 3]
+    rec.close()
+    assert csv_path.read_bytes() == heads[-1]
+
+
+def test_an_existing_recording_is_not_overwritten(tmp_path: Path) -> None:
+    with FlightRecorder(tmp_path / "rec") as rec:
+        rec.record(Wire()(system_time(0.0)), T0)
+    before = (tmp_path / "rec" / "flight.tlog").read_bytes()
+    with pytest.raises(OutputExistsError, match="--overwrite"):
+        FlightRecorder(tmp_path / "rec")
+    assert (tmp_path / "rec" / "flight.tlog").read_bytes() == before
+    with FlightRecorder(tmp_path / "rec", overwrite=True):
+        pass
+    assert (tmp_path / "rec" / "flight.tlog").read_bytes() == b""
+
+
+# --- recorder: camera events --------------------------------------------------------------------
+
+
+def test_repeated_camera_messages_are_recorded_once(tmp_path: Path) -> None:
+    wire = Wire()
+    with FlightRecorder(tmp_path / "rec") as rec:
+        rec.record(wire(system_time(0.0)), T0)
+        first = feedback(1.0, 1, 0, 0)
+        rec.record(wire(first), T0 + 1)
+        rec.record(wire(first), T0 + 1.01)  # the same event again (a second path, a resend)
+        rec.record(wire(feedback(2.0, 2, 10, 0)), T0 + 2)
+        rec.record(wire(feedback(2.0, 2, 10, 0)), T0 + 2.5)
+        rec.record(wire(feedback(9.0, 1, 50, 0)), T0 + 9)  # index 1 again, later: a reboot
+        state = rec.state()
+    assert state.photos_taken == 3 and state.duplicate_events == 2
+    rows = read_csv(tmp_path / "rec" / "triggers.csv")
+    assert [int(r["seq"]) for r in rows] == [1, 2, 1]
+    assert [float(r["time_utc_s"]) for r in rows] == pytest.approx([T0 + 1, T0 + 2, T0 + 9])
+
+
+def test_px4_trigger_and_capture_of_one_photo_count_once(tmp_path: Path) -> None:
+    wire = Wire()
+    with FlightRecorder(tmp_path / "rec") as rec:
+        rec.record(wire(system_time(0.0)), T0)
+        for k in range(3):
+            t = 1.0 + k
+            lat, lon = offset(10 * k, 0)
+            rec.record(wire(mavlink2.MAVLink_camera_trigger_message(round((T0 + t) * 1e6), k)))
+            rec.record(
+                wire(
+                    mavlink2.MAVLink_camera_image_captured_message(
+                        round(t * 1e3),
+                        round((T0 + t) * 1e6),
+                        0,
+                        round(lat * 1e7),
+                        round(lon * 1e7),
+                        80_000,
+                        70_000,
+                        [1.0, 0.0, 0.0, 0.0],
+                        k,
+                        1,
+                        b"",
+                    )
+                )
+            )
+        # a failed capture is not a photo
+        rec.record(
+            wire(
+                mavlink2.MAVLink_camera_image_captured_message(
+                    5000, round((T0 + 5) * 1e6), 0, 0, 0, 0, 0, [1.0, 0, 0, 0], 3, 0, b""
+                )
+            )
+        )
+        state = rec.state()
+    assert state.photos_taken == 3 and state.failed_captures == 1
+    rows = read_csv(tmp_path / "rec" / "triggers.csv")
+    assert {r["source"] for r in rows} == {"CAMERA_IMAGE_CAPTURED"}
+    assert [int(r["seq"]) for r in rows] == [0, 1, 2]
+
+
+def test_trigger_only_vehicle_gets_the_last_position(tmp_path: Path) -> None:
+    wire = Wire()
+    with FlightRecorder(tmp_path / "rec") as rec:
+        rec.record(wire(system_time(0.0)), T0)
+        rec.record(wire(position(0.9, 20, 0, 5, 0)), T0 + 0.9)
+        rec.record(wire(mavlink2.MAVLink_camera_trigger_message(round((T0 + 1) * 1e6), 7)))
+        assert rec.state().photos_taken == 0  # held, waiting for a CAMERA_IMAGE_CAPTURED
+    rows = read_csv(tmp_path / "rec" / "triggers.csv")
+    assert len(rows) == 1 and rows[0]["source"] == "CAMERA_TRIGGER+GLOBAL_POSITION_INT"
+    lat, _lon = offset(20, 0)
+    assert float(rows[0]["lat_deg"]) == pytest.approx(lat, abs=1e-7)
+    assert float(rows[0]["time_utc_s"]) == pytest.approx(T0 + 1, abs=1e-6)
+    assert rows[0]["roll_deg"] == ""  # unknown is empty, never NaN or a sentinel
+
+
+def test_flight_is_over_at_the_disarming_after_a_flight_not_after_ground_checks(
+    tmp_path: Path,
+) -> None:
+    wire = Wire()
+
+    def at(alt_rel_home_m: float) -> Any:
+        lat, lon = offset(0, 0)
+        return mavlink2.MAVLink_global_position_int_message(
+            0, round(lat * 1e7), round(lon * 1e7), 0, round(alt_rel_home_m * 1e3), 0, 0, 0, 0
+        )
+
+    with FlightRecorder(tmp_path / "rec") as rec:
+        for msg in (heartbeat(True), at(0.3), heartbeat(False)):  # checks on the ground
+            rec.record(wire(msg), T0)
+        assert not rec.state().flight_over
+        for msg in (heartbeat(True), at(30.0), at(0.1)):
+            rec.record(wire(msg), T0)
+        assert not rec.state().flight_over and rec.state().armed
+        rec.record(wire(heartbeat(False)), T0)
+        assert rec.state().flight_over and not rec.state().armed
+        rec.record(wire(heartbeat(True)), T0)  # a second flight in the same recording
+        assert not rec.state().flight_over
+
+
+# --- recorder: link quality ---------------------------------------------------------------------
+
+
+def test_link_quality_from_sequence_gaps_duplicates_and_reordering(tmp_path: Path) -> None:
+    vehicle, camera, other = Wire(1, 1), Wire(1, 100), Wire(2, 1)
+    with FlightRecorder(tmp_path / "rec") as rec:
+        # vehicle: 0 1 2 | 5 (3 and 4 lost) | 5 again (duplicate) | 4 late (one loss undone)
+        for seq in (0, 1, 2, 5, 5, 4, 6):
+            rec.record(vehicle(heartbeat(False), seq=seq), T0)
+        # camera component of the same system, wrapping around 255 -> 0 with no loss
+        for seq in (254, 255, 0, 1):
+            rec.record(camera(system_time(1.0), seq=seq), T0)
+        # another system: 10 then 20 (9 lost)
+        for seq in (10, 20):
+            rec.record(other(heartbeat(False), seq=seq), T0)
+        state = rec.state()
+    by_system = {q.system_id: q for q in state.link}
+    one = by_system[1]
+    assert (one.received, one.lost, one.duplicates, one.late) == (6 + 4, 1, 1, 1)
+    assert one.quality_pct == pytest.approx(100 * 10 / 11)
+    two = by_system[2]
+    assert (two.received, two.lost) == (2, 9)
+    assert state.link_quality_pct == pytest.approx(100 * 12 / 22)
+    rec2 = FlightRecorder(tmp_path / "rec2")
+    wire = Wire()
+    for seq in (0, 1):
+        rec2.record(wire(heartbeat(False), seq=seq), T0)
+    rec2.note_drop("cut")
+    rec2.note_reconnect()
+    for seq in (200, 201):  # what was sent while the link was down is not counted as lost
+        rec2.record(wire(heartbeat(False), seq=seq), T0)
+    state2 = rec2.close()
+    assert state2.link_quality_pct == 100.0 and state2.drops == 1 and state2.reconnects == 1
+
+
+# --- recorder: missed stations ------------------------------------------------------------------
+
+
+def fly(rec: FlightRecorder, wire: Wire, legs: list[tuple[float, float, int]], skip: set[int],
+        spacing: float = 10.0, until: int | None = None) -> None:  # fmt: skip
+    """Fly the legs of :func:`line_plan` at 5 m/s, positions every 0.5 m, a photo at every
+    station except those in ``skip``; stop when station ``until`` is reached."""
+    t = 0.0
+    station = 0
+    for north, head, count in legs:
+        v_east = 5.0 if head == 90.0 else -5.0
+        length = (count - 1) * spacing
+        steps = round((length + 2 * spacing) / 0.5)
+        for k in range(steps + 1):
+            s = -spacing + 0.5 * k  # along the leg, from a lead-in
+            east = s if head == 90.0 else length - s
+            t += 0.1
+            rec.record(wire(position(t, east, north, v_east, 0.0)), T0 + t)
+            i = s / spacing
+            if abs(i - round(i)) < 1e-9 and 0 <= round(i) < count:
+                if until is not None and station == until:
+                    return
+                if station not in skip:
+                    rec.record(wire(feedback(t, station + 1, east + 0.7, north - 0.4)), T0 + t)
+                station += 1
+
+
+def test_missed_stations_are_those_passed_without_a_photo(tmp_path: Path) -> None:
+    legs = [(0.0, 90.0, 6), (30.0, 270.0, 6)]
+    plan = line_plan(legs)
+    wire = Wire()
+    rec = FlightRecorder(tmp_path / "rec", plan)
+    rec.record(wire(system_time(0.0)), T0)
+    rec.record(wire(heartbeat(True)), T0)
+    # fly up to the moment station 3 is reached: station 2 was skipped and is behind
+    fly(rec, wire, legs, skip={2, 8}, until=3)
+    state = rec.state()
+    assert state.missed_stations == (2,)
+    assert state.stations_passed == 3 and state.photos_taken == 2
+    rec.close()
+    rec = FlightRecorder(tmp_path / "rec2", plan)
+    rec.record(wire(system_time(0.0)), T0)
+    rec.record(wire(heartbeat(True)), T0)
+    fly(rec, wire, legs, skip={2, 8, 11})
+    state = rec.state()
+    # 11 is the last station: nothing later was reached, so it is not yet known as missed
+    assert state.missed_stations == (2, 8)
+    assert state.photos_taken == 9 and state.stations_taken == 9 and state.extra_photos == 0
+    rec.record(wire(heartbeat(False)), T0 + 100)  # landed and disarmed: the flight is over
+    final = rec.close()
+    assert final.flight_over and final.missed_stations == (2, 8, 11)
+
+
+def test_late_photo_unmisses_and_far_photo_is_extra(tmp_path: Path) -> None:
+    legs = [(0.0, 90.0, 5)]
+    plan = line_plan(legs)
+    wire = Wire()
+    with FlightRecorder(tmp_path / "rec", plan) as rec:
+        rec.record(wire(system_time(0.0)), T0)
+        fly(rec, wire, legs, skip={1}, until=3)
+        assert rec.state().missed_stations == (1,)
+        rec.record(wire(feedback(50.0, 99, 10.0 + 3.0, 1.0)), T0 + 50)  # late, 3.2 m off
+        assert rec.state().missed_stations == ()
+        rec.record(wire(feedback(51.0, 100, 500.0, 0.0)), T0 + 51)  # nowhere near a station
+        state = rec.state()
+    assert state.extra_photos == 1 and state.photos_taken == 4
+
+
+def test_transit_across_later_lines_does_not_mark_stations_passed(tmp_path: Path) -> None:
+    # two legs; the vehicle first crosses leg 1 going north (across its heading), then
+    # flies along leg 1's direction over leg 1, which is not the current leg (leg 0 is)
+    legs = [(0.0, 90.0, 5), (30.0, 270.0, 5), (60.0, 90.0, 5)]
+    plan = line_plan(legs)
+    wire = Wire()
+    with FlightRecorder(tmp_path / "rec", plan) as rec:
+        t = 0.0
+        for k in range(200):  # northbound transit over the middle of leg 1 and leg 2
+            t += 0.1
+            rec.record(wire(position(t, 20.0, -10.0 + 0.5 * k, 0.0, 5.0)), T0 + t)
+        for k in range(120):  # eastbound along leg 2 (heading 90 like leg 0): too far ahead
+            t += 0.1
+            rec.record(wire(position(t, -10.0 + 0.5 * k, 60.0, 5.0, 0.0)), T0 + t)
+        assert rec.state().stations_passed == 0
+        assert rec.state().missed_stations == ()
+        # one photo at a station of leg 2 does not move the progress; a second one does
+        rec.record(wire(feedback(t, 1, 0.0, 60.0)), T0 + t)
+        assert rec.state().stations_passed == 0
+        rec.record(wire(feedback(t + 2, 2, 10.0, 60.0)), T0 + t + 2)
+        state = rec.state()
+    assert state.stations_passed == 11
+    assert state.missed_stations == tuple(range(10))
+
+
+def test_plan_folder_is_read_with_radius_from_the_trigger_distance(tmp_path: Path) -> None:
+    plan = planned_gully(tmp_path)[1]
+    stations = load_station_plan(tmp_path / "plan")
+    assert len(stations) == len(plan.stations) == plan.summary.photo_count
+    d = plan.summary.trigger_distance_m
+    assert stations.trigger_distance_m == pytest.approx(d)
+    assert np.allclose(stations.match_radius_m, max(d / 2, 5.0))
+    assert np.allclose(stations.lat_deg, plan.stations.lat_deg, atol=1e-8)
+    assert np.array_equal(stations.line_index, plan.stations.line_index)
+
+
+# --- flights in the simulator -------------------------------------------------------------------
+
+
+def planned_gully(tmp_path: Path) -> tuple[Path, SurveyPlan]:
+    spec = load_spec(ROOT / "missions" / "bardenas-gully.toml")
+    plan = plan_survey(spec)
+    write_outputs(plan, tmp_path / "plan")
+    return tmp_path / "plan", plan
+
+
+def planned_small(tmp_path: Path) -> tuple[Path, SurveyPlan]:
+    """A 180 m x 160 m field with the gully's camera: 5 lines, 65 photos."""
+    corners = [offset(e, n) for e, n in ((20, 20), (200, 20), (200, 180), (20, 180))]
+    ring = [[lon, lat] for lat, lon in corners] + [[corners[0][1], corners[0][0]]]
+    area = {"type": "FeatureCollection", "features": [
+        {"type": "Feature", "properties": {}, "geometry": {"type": "Polygon", "coordinates": [ring]}}
+    ]}  # fmt: skip
+    (tmp_path / "small.geojson").write_text(json.dumps(area))
+    (tmp_path / "small.toml").write_text(
+        (ROOT / "missions" / "bardenas-gully.toml")
+        .read_text()
+        .replace('name = "Bardenas gully"', 'name = "small field"')
+        .replace('area = "bardenas-gully.geojson"', 'area = "small.geojson"')
+        .replace("home = [42.2012, -1.4866]", f"home = [{LAT0}, {LON0}]")
+    )
+    plan = plan_survey(load_spec(tmp_path / "small.toml"))
+    write_outputs(plan, tmp_path / "plan")
+    return tmp_path / "plan", plan
+
+
+class Relay:
+    """A TCP relay between the monitor and the simulator that a test can cut and restore:
+    cut closes both connections and stops listening (reconnections are refused)."""
+
+    def __init__(self, upstream_url: str) -> None:
+        host, port = upstream_url.removeprefix("tcp://").rsplit(":", 1)
+        self.upstream = (host, int(port))
+        self.port = 0
+        self._listen: socket.socket | None = None
+        self._pairs: list[tuple[socket.socket, socket.socket]] = []
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+
+    @property
+    def url(self) -> str:
+        return f"tcp://127.0.0.1:{self.port}"
+
+    def __enter__(self) -> Relay:
+        self.restore()
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._stop.set()
+        self._thread.join(timeout=2)
+        self.cut()
+
+    def restore(self) -> None:
+        sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        sock.bind(("127.0.0.1", self.port))
+        sock.listen(4)
+        self.port = sock.getsockname()[1]
+        with self._lock:
+            self._listen = sock
+
+    def cut(self) -> None:
+        with self._lock:
+            socks = [s for pair in self._pairs for s in pair]
+            if self._listen is not None:
+                socks.append(self._listen)
+            self._pairs, self._listen = [], None
+        for s in socks:
+            with contextlib.suppress(OSError):
+                s.shutdown(socket.SHUT_RDWR)
+            s.close()
+
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            with self._lock:
+                listen = self._listen
+                pairs = list(self._pairs)
+            socks = [s for pair in pairs for s in pair] + ([listen] if listen else [])
+            try:
+                readable, _, _ = select.select(socks, [], [], 0.02) if socks else ([], [], [])
+            except (OSError, ValueError):
+                continue
+            if not socks:
+                time.sleep(0.02)
+            for s in readable:
+                try:
+                    if s is listen:
+                        client, _ = s.accept()
+                        server = socket.create_connection(self.upstream)
+                        with self._lock:
+                            self._pairs.append((client, server))
+                        continue
+                    pair = next(p for p in pairs if s in p)
+                    data = s.recv(65536)
+                    if not data:
+                        raise OSError("closed")
+                    (pair[1] if s is pair[0] else pair[0]).sendall(data)
+                except (OSError, StopIteration):
+                    continue
+
+
+def gcs_start_mission(url: str) -> None:
+    """Arm and start the mission with COMMAND_LONG, as a ground station does."""
+    with Link.open(url, heartbeat_timeout_s=5.0, source_component=191) as link:
+        for command, params in ((400, (1.0,)), (300, ())):
+            padded = list(params) + [0.0] * (7 - len(params))
+            link.send(
+                mavlink2.MAVLink_command_long_message(
+                    link.target_system, link.target_component, command, 0, *padded
+                )
+            )
+            ack = link.recv({"COMMAND_ACK"}, timeout_s=3.0)
+            assert ack is not None and ack.command == command and ack.result == 0
+
+
+@pytest.fixture
+def run_monitor() -> Iterator[Any]:
+    threads: list[threading.Thread] = []
+    stops: list[threading.Event] = []
+
+    def start(url: str, plan_dir: Path, out_dir: Path, **kw: Any) -> dict[str, Any]:
+        box: dict[str, Any] = {"states": [], "connected": threading.Event()}
+        stop = threading.Event()
+
+        def on_update(state: MonitorState) -> None:
+            box["states"].append(state)
+            if state.messages > 0:
+                box["connected"].set()
+
+        def body() -> None:
+            try:
+                box["result"] = monitor(
+                    url, plan_dir, out_dir, on_update=on_update, stop_event=stop,
+                    update_interval_s=0.05, **kw,
+                )  # fmt: skip
+            except BaseException as error:  # handed to the test
+                box["error"] = error
+
+        thread = threading.Thread(target=body, daemon=True)
+        thread.start()
+        threads.append(thread)
+        stops.append(stop)
+        box["thread"] = thread
+        assert box["connected"].wait(15), box.get("error")
+        return box
+
+    yield start
+    for stop in stops:
+        stop.set()
+    for thread in threads:
+        thread.join(timeout=10)
+
+
+@pytest.mark.slow  # 20-45 s: the monitor parses about 40,000 messages in pure Python
+def test_gully_flight_records_one_event_per_planned_station(tmp_path: Path, run_monitor: Any) -> None:
+    plan_dir, plan = planned_gully(tmp_path)
+    d = plan.summary.trigger_distance_m
+    with SimulatedVehicle(speedup=100, home=plan.mission.home, boot_delay_s=0.0, gps_fix_s=0.5) as vehicle:
+        url = vehicle.url_for_client
+        with Link.open(url, heartbeat_timeout_s=5.0, source_component=191) as link:
+            assert vehicle.wait_sim_time(0.6)
+            upload_mission(link, plan.mission)
+        box = run_monitor(url, plan_dir, tmp_path / "flight")
+        gcs_start_mission(url)
+        box["thread"].join(timeout=60)
+        assert not box["thread"].is_alive() and "error" not in box, box.get("error")
+        shots = list(vehicle.flight.shots)
+    result: MonitorResult = box["result"]
+    assert result.reason is StopReason.LANDED
+    n = len(plan.stations)
+    assert len(shots) == n == 565
+    state = result.state
+    assert state.photos_taken == n and state.photos_planned == n
+    assert state.missed_stations == () and state.extra_photos == 0
+    assert state.stations_taken == n and state.flight_over
+    assert state.link_quality_pct == 100.0 and state.drops == 0
+    flight = read_tlog(result.tlog_path)
+    ev = flight.events
+    assert ev is not None and len(ev) == n and ev.source == "tlog:CAMERA_FEEDBACK"
+    assert ev.lat_deg is not None and ev.lon_deg is not None
+    # every event within the trigger distance of its planned station (flight order)
+    _, _, dist = GEOD.inv(ev.lon_deg, ev.lat_deg, plan.stations.lon_deg, plan.stations.lat_deg)
+    assert np.max(dist) < d
+    assert np.max(dist) < 2.0  # the simulator's GPS noise is 0.3 m RMS
+    rows = read_csv(result.csv_path)
+    assert len(rows) == n
+    assert [int(r["seq"]) for r in rows] == list(ev.seq) == list(range(1, n + 1))
+    assert np.allclose([float(r["time_utc_s"]) for r in rows], ev.time_utc_s, atol=1e-6)
+    assert np.allclose([float(r["lat_deg"]) for r in rows], ev.lat_deg, atol=1e-9)
+    assert np.allclose([float(r["lon_deg"]) for r in rows], ev.lon_deg, atol=1e-9)
+    assert ev.alt_rel_home_m is not None
+    assert np.allclose([float(r["alt_rel_home_m"]) for r in rows], ev.alt_rel_home_m, atol=1e-3)
+    summary = json.loads(result.summary_path.read_text())
+    assert summary["photos_taken"] == n and summary["missed_stations"] == []
+
+
+def test_link_drop_mid_flight_is_survived_and_the_recording_kept(
+    tmp_path: Path, run_monitor: Any, caplog: pytest.LogCaptureFixture
+) -> None:
+    plan_dir, plan = planned_small(tmp_path)
+    n = len(plan.stations)
+    assert n >= 40
+    with SimulatedVehicle(speedup=60, home=plan.mission.home, boot_delay_s=0.0, gps_fix_s=0.0) as vehicle:
+        vehicle.load_mission(plan.mission.items)
+        with Relay(vehicle.url_for_client) as relay:
+            box = run_monitor(relay.url, plan_dir, tmp_path / "flight", reconnect_timeout_s=20)
+            vehicle.auto_start()
+            # cut a third of the way into the photos, for 0.5 s of wall clock (30 s of flight)
+            deadline = time.monotonic() + 30
+            while len(vehicle.flight.shots) < n // 3 and time.monotonic() < deadline:
+                time.sleep(0.005)
+            relay.cut()
+            before_cut = read_csv(tmp_path / "flight" / "triggers.csv")
+            time.sleep(0.5)
+            restored_at = vehicle.sim_time_s
+            relay.restore()
+            box["thread"].join(timeout=60)
+            assert not box["thread"].is_alive() and "error" not in box, box.get("error")
+        shots = list(vehicle.flight.shots)
+    result: MonitorResult = box["result"]
+    state = result.state
+    assert result.reason is StopReason.LANDED
+    assert state.drops == 1 and state.reconnects == 1 and state.connected
+    assert any("reconnected" in r.getMessage() for r in caplog.records)
+    assert any(not s.connected for s in box["states"])  # the update said the link was lost
+    assert len(shots) == n
+    flight = read_tlog(result.tlog_path)
+    ev = flight.events
+    assert ev is not None and ev.lat_deg is not None and ev.lon_deg is not None
+    # photos taken while the link was down (or in the pipe when it was cut) never reached
+    # the monitor; all others did, and what was recorded before the cut is still there
+    recorded = set(int(s) for s in ev.seq)
+    lost = [s.index for s in shots if s.index not in recorded]
+    assert len(lost) > 0
+    assert lost == list(range(lost[0], lost[-1] + 1))  # one run, around the cut
+    assert lost[-1] < n  # the photos after the reconnection were recorded
+    assert len(before_cut) > 0
+    rows = read_csv(result.csv_path)
+    assert rows[: len(before_cut)] == before_cut
+    assert max(int(r["seq"]) for r in before_cut) < lost[0]
+    assert max(s.time_s for s in shots if s.index in set(lost)) <= restored_at
+    assert len(ev) == n - len(lost) == state.photos_taken
+    # ... and the monitor reports exactly their stations as missed (img_idx k is station k-1)
+    assert state.missed_stations == tuple(i - 1 for i in lost)
+    _, _, dist = GEOD.inv(
+        ev.lon_deg, ev.lat_deg,
+        plan.stations.lon_deg[ev.seq - 1], plan.stations.lat_deg[ev.seq - 1],
+    )  # fmt: skip
+    assert np.max(dist) < plan.summary.trigger_distance_m
+    assert [int(r["seq"]) for r in rows] == list(ev.seq)
+
+
+def test_px4_flight_counts_each_photo_once_from_trigger_and_capture(tmp_path: Path, run_monitor: Any) -> None:
+    plan_dir, plan = planned_small(tmp_path)
+    n = len(plan.stations)
+    with SimulatedVehicle(
+        autopilot=Autopilot.PX4, speedup=100, home=plan.mission.home, gps_fix_s=0.0
+    ) as vehicle:
+        vehicle.load_mission(plan.mission.items)
+        box = run_monitor(vehicle.url_for_client, plan_dir, tmp_path / "flight")
+        vehicle.auto_start()
+        box["thread"].join(timeout=60)
+        assert not box["thread"].is_alive() and "error" not in box, box.get("error")
+        sent = dict(vehicle.sent_counts)
+    assert sent["CAMERA_TRIGGER"] == sent["CAMERA_IMAGE_CAPTURED"] == n
+    result: MonitorResult = box["result"]
+    state = result.state
+    assert result.reason is StopReason.LANDED
+    assert state.photos_taken == n and state.missed_stations == () and state.extra_photos == 0
+    rows = read_csv(result.csv_path)
+    assert [int(r["seq"]) for r in rows] == list(range(n))  # PX4 counts from 0
+    assert {r["source"] for r in rows} == {"CAMERA_IMAGE_CAPTURED"}
+    lat = np.array([float(r["lat_deg"]) for r in rows])
+    lon = np.array([float(r["lon_deg"]) for r in rows])
+    _, _, dist = GEOD.inv(lon, lat, plan.stations.lon_deg, plan.stations.lat_deg)
+    assert np.max(dist) < plan.summary.trigger_distance_m
