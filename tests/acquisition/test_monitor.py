@@ -574,12 +574,16 @@ def run_monitor() -> Iterator[Any]:
     threads: list[threading.Thread] = []
     stops: list[threading.Event] = []
 
-    def start(url: str, plan_dir: Path, out_dir: Path, **kw: Any) -> dict[str, Any]:
-        box: dict[str, Any] = {"states": [], "connected": threading.Event()}
+    def start(url: str, plan_dir: Path, out_dir: Path, clock: Any = None, **kw: Any) -> dict[str, Any]:
+        """Run monitor() in a thread; ``box["states"]`` collects the updates, each with the
+        time ``clock()`` (e.g. the simulator's) gave when it came."""
+        box: dict[str, Any] = {"states": [], "clocked": [], "connected": threading.Event()}
         stop = threading.Event()
 
         def on_update(state: MonitorState) -> None:
             box["states"].append(state)
+            if clock is not None:
+                box["clocked"].append((clock(), state))
             if state.messages > 0:
                 box["connected"].set()
 
@@ -659,7 +663,13 @@ def test_link_drop_mid_flight_is_survived_and_the_recording_kept(
     with SimulatedVehicle(speedup=60, home=plan.mission.home, boot_delay_s=0.0, gps_fix_s=0.0) as vehicle:
         vehicle.load_mission(plan.mission.items)
         with Relay(vehicle.url_for_client) as relay:
-            box = run_monitor(relay.url, plan_dir, tmp_path / "flight", reconnect_timeout_s=20)
+            box = run_monitor(
+                relay.url,
+                plan_dir,
+                tmp_path / "flight",
+                clock=lambda: vehicle.sim_time_s,
+                reconnect_timeout_s=20,
+            )
             vehicle.auto_start()
             # cut a third of the way into the photos, for 0.5 s of wall clock (30 s of flight)
             deadline = time.monotonic() + 30
@@ -668,7 +678,6 @@ def test_link_drop_mid_flight_is_survived_and_the_recording_kept(
             relay.cut()
             before_cut = read_csv(tmp_path / "flight" / "triggers.csv")
             time.sleep(0.5)
-            restored_at = vehicle.sim_time_s
             relay.restore()
             box["thread"].join(timeout=60)
             assert not box["thread"].is_alive() and "error" not in box, box.get("error")
@@ -694,7 +703,9 @@ def test_link_drop_mid_flight_is_survived_and_the_recording_kept(
     rows = read_csv(result.csv_path)
     assert rows[: len(before_cut)] == before_cut
     assert max(int(r["seq"]) for r in before_cut) < lost[0]
-    assert max(s.time_s for s in shots if s.index in set(lost)) <= restored_at
+    # none was shot after the monitor was back (the update that says so, in simulated time)
+    back_at = min(t for t, st in box["clocked"] if st.reconnects == 1)
+    assert max(s.time_s for s in shots if s.index in set(lost)) <= back_at
     assert len(ev) == n - len(lost) == state.photos_taken
     # ... and the monitor reports exactly their stations as missed (img_idx k is station k-1)
     assert state.missed_stations == tuple(i - 1 for i in lost)
