@@ -822,7 +822,12 @@ class SimulatedVehicle:
         """Stop the thread and close the socket and the tlog."""
         self._stop.set()
         if self._thread is not None:
-            self._thread.join(timeout=5.0)
+            # The loop checks the stop flag between steps; a step of a heavily loaded simulation
+            # can take long, so wait for it rather than pull the socket from under it.
+            self._thread.join(timeout=30.0)
+            if self._thread.is_alive():
+                log.error("simulated vehicle: the loop did not stop within 30 s; leaving it running")
+                return
             self._thread = None
         if self._transport is not None:
             self._transport.close()
