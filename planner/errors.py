@@ -35,6 +35,10 @@ class AreaError(InputError):
     """An area polygon is unusable (empty, self-intersecting, absurd size, wrong CRS)."""
 
 
+class TerrainError(InputError):
+    """A DEM cannot be read or does not cover the survey."""
+
+
 class OutputExistsError(InputError):
     """An output would overwrite an existing file without --overwrite."""
 

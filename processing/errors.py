@@ -2,14 +2,14 @@
 
 from __future__ import annotations
 
-from planner.errors import InputError, SfapError
+from planner.errors import InputError, SfapError, TerrainError
 
 
 class ProcessingError(SfapError):
     """A check or hand-off could not be done (exit code 1)."""
 
 
-class GroundError(InputError):
+class GroundError(TerrainError):
     """The ground (height above ground) is unknown or its source is unusable."""
 
 
