@@ -65,6 +65,9 @@ class BuiltMission:
     path_lonlat_deg: NDArray[np.float64]
     flight_distance_m: float
     flight_time_s: float
+    path_s_m: NDArray[np.float64]  # distance flown to each path point
+    path_item_index: tuple[int | None, ...]  # the mission item of each path point (None: home)
+    station_s_m: NDArray[np.float64]  # distance flown to each station
 
 
 @dataclass
@@ -127,6 +130,9 @@ def build_mission(
     gimbal(-90.0, 0.0)  # nothing else points the camera down (QGC issue 8694)
 
     path: list[tuple[float, float]] = [home_xy]
+    path_s: list[float] = [0.0]  # distance flown along the path to each point, metres
+    path_item: list[int | None] = [None]  # the mission item of each path point (None: home)
+    station_s: list[NDArray[np.float64]] = []  # distance along the path of every station
     transit_flags: list[bool] = []  # per leg of `path`: True when camera-off transit
     holds_s = 0.0
     position = home_xy
@@ -139,6 +145,8 @@ def build_mission(
             return
         lat, lon = to_lonlat(p)
         items.append(MissionItem.waypoint(lat, lon, alt, hold_s=hold_s))
+        path_s.append(path_s[-1] + math.dist(path[-1], p))
+        path_item.append(len(items) - 1)
         path.append(p)
         transit_flags.append(transit)
         position = p
@@ -182,12 +190,16 @@ def build_mission(
             v_stations = np.full_like(u_stations, seg.v_m)
             sx, sy = from_pass_frame(u_stations, v_stations, pp.direction_deg)
             if hover:
+                hover_s = []
                 for x, y in zip(sx, sy, strict=True):
                     waypoint((float(x), float(y)), hold_s=survey.hover_hold_s, transit=False)
+                    hover_s.append(path_s[-1])
                     items.append(MissionItem.image_start_capture())
                     holds_s += survey.hover_hold_s
+                station_s.append(np.asarray(hover_s, float))
             else:
                 waypoint(pts["start"], transit=True)
+                station_s.append(path_s[-1] + np.abs(u_stations - u_stations[0]))
                 if seg.count > 1:
                     items.append(MissionItem.cam_trigger_distance(seg.spacing_m, trigger_now=True))
                     waypoint(pts["stop"], transit=False)
@@ -229,6 +241,8 @@ def build_mission(
     for p in router.path(position, home_xy)[1:-1]:
         waypoint(p)
     items.append(MissionItem.return_to_launch())
+    path_s.append(path_s[-1] + math.dist(path[-1], home_xy))
+    path_item.append(None)
     path.append(home_xy)
     transit_flags.append(True)
 
@@ -259,6 +273,9 @@ def build_mission(
         path_lonlat_deg=path_lonlat,
         flight_distance_m=distance,
         flight_time_s=flight_time,
+        path_s_m=np.asarray(path_s, float),
+        path_item_index=tuple(path_item),
+        station_s_m=np.concatenate(station_s) if station_s else np.zeros(0),
     )
 
 

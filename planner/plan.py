@@ -133,6 +133,7 @@ class Summary:
     item_count: int
     crs: str
     warnings: tuple[str, ...] = ()
+    terrain: dict[str, object] | None = None  # planner.terrain_follow.TerrainSummary, with a DEM
 
     def as_dict(self) -> dict[str, object]:
         out: dict[str, object] = {}

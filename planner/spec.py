@@ -67,6 +67,18 @@ class VehicleSpec:
 
 
 @dataclass(frozen=True, kw_only=True)
+class TerrainSpec:
+    """A DEM and how to fly over it (planner.terrain_follow)."""
+
+    dem_path: Path
+    follow: bool = True  # altitudes follow the ground; False: constant above home, spread reported
+    tolerance_m: float = 3.0
+    sample_spacing_m: float = 10.0
+    max_climb_rate_m_s: float = 3.0
+    max_descent_rate_m_s: float = 2.0
+
+
+@dataclass(frozen=True, kw_only=True)
 class MissionSpec:
     name: str
     source: Path  # the TOML file
@@ -76,9 +88,13 @@ class MissionSpec:
     orientation: Orientation
     survey: SurveySpec
     vehicle: VehicleSpec
+    terrain: TerrainSpec | None = None
 
 
-_TOP_KEYS = {"name", "area", "exclude", "camera", "survey", "vehicle"}
+_TOP_KEYS = {"name", "area", "exclude", "camera", "survey", "vehicle", "terrain"}
+_TERRAIN_KEYS = {
+    "dem", "follow", "tolerance_m", "sample_spacing_m", "max_climb_rate_m_s", "max_descent_rate_m_s",
+}  # fmt: skip
 _SURVEY_KEYS = {
     "gsd_cm", "altitude_agl_m", "front_overlap_pct", "side_overlap_pct", "speed_m_s",
     "direction_deg", "crosshatch", "turnaround_m", "trigger", "oblique", "adjust_speed",
@@ -138,6 +154,7 @@ def parse_spec(data: Mapping[str, Any], file: Path) -> MissionSpec:
 
     survey = _parse_survey(data.get("survey"), where)
     vehicle = _parse_vehicle(data.get("vehicle", {}), where)
+    terrain = _parse_terrain(data["terrain"], base, where) if "terrain" in data else None
     return MissionSpec(
         name=name,
         source=file.resolve(),
@@ -147,6 +164,26 @@ def parse_spec(data: Mapping[str, Any], file: Path) -> MissionSpec:
         orientation=orientation,
         survey=survey,
         vehicle=vehicle,
+        terrain=terrain,
+    )
+
+
+def _parse_terrain(value: Any, base: Path, where: str) -> TerrainSpec:
+    if not isinstance(value, dict):
+        raise SpecError(f'{where}: [terrain] must be a table with dem = "file.tif"')
+    section = f"{where} [terrain]"
+    _check_keys(value, _TERRAIN_KEYS, section, "[terrain]")
+    dem = _get(value, "dem", str, section)
+    dem_path = (base / dem).resolve()
+    if not dem_path.is_file():
+        raise SpecError(f"{section}: dem = {dem!r}: {dem_path} does not exist")
+    return TerrainSpec(
+        dem_path=dem_path,
+        follow=_get(value, "follow", bool, section, default=True),
+        tolerance_m=_number(value, "tolerance_m", section, 0.5, 100.0, default=3.0),
+        sample_spacing_m=_number(value, "sample_spacing_m", section, 1.0, 200.0, default=10.0),
+        max_climb_rate_m_s=_number(value, "max_climb_rate_m_s", section, 0.1, 20.0, default=3.0),
+        max_descent_rate_m_s=_number(value, "max_descent_rate_m_s", section, 0.1, 20.0, default=2.0),
     )
 
 

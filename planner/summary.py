@@ -26,6 +26,7 @@ def summarize(
     built: BuiltMission,
     warnings: tuple[str, ...],
     true_north_grid_deg: float,
+    terrain: dict[str, object] | None = None,
 ) -> Summary:
     camera = spec.camera
     footprint = camera.footprint(alt_agl_m, spec.orientation)
@@ -77,4 +78,5 @@ def summarize(
         item_count=len(built.mission.items),
         crs=f"EPSG:{frame.epsg}" if frame.epsg else frame.crs.to_string(),
         warnings=warnings,
+        terrain=terrain,
     )

@@ -31,9 +31,11 @@ from .footprint import near_far_gsd_cm, tilted_gsd_cm
 from .geo import LocalFrame, geodesic_area_m2
 from .lines import layout_pass
 from .mission import HomePosition, VehicleType
-from .mission_builder import PassPlan, build_mission
+from .mission_builder import BuiltMission, PassPlan, build_mission
 from .plan import FlightPass, PassKind, SurveyPlan
 from .spec import MissionSpec, TriggerMode
+from .terrain import Dem
+from .terrain_follow import TerrainSummary, apply_terrain
 
 log = logging.getLogger(__name__)
 
@@ -187,6 +189,19 @@ def plan_polygons(spec: MissionSpec, polygons: list[Polygon], exclusions: list[P
         true_north_grid_deg=true_north_grid,
     )
 
+    terrain_summary = None
+    if spec.terrain is not None:
+        built, home, terrain_summary = _over_terrain(
+            spec, built, frame, home, home_xy, area_lonlat, alt_agl_m, speed_m_s, pass_plans
+        )
+        front, side = terrain_summary.front_overlap_min_pct, terrain_summary.side_overlap_min_pct
+        if front < survey.front_overlap_pct - 5.0 or side < survey.side_overlap_pct - 5.0:
+            gaps = " (below 0: gaps between frames)" if min(front, side) < 0 else ""
+            warnings.append(
+                f"over the terrain the overlaps fall to {front:.0f} % forward and {side:.0f} % side "
+                f"where the ground is highest{gaps}; set follow = true in [terrain]"
+            )
+
     passes = tuple(
         FlightPass(
             index=p.index,
@@ -221,6 +236,7 @@ def plan_polygons(spec: MissionSpec, polygons: list[Polygon], exclusions: list[P
         built=built,
         warnings=tuple(warnings),
         true_north_grid_deg=true_north_grid,
+        terrain=terrain_summary.as_dict() if terrain_summary is not None else None,
     )
     for w in warnings:
         log.warning(w)
@@ -242,6 +258,43 @@ def plan_polygons(spec: MissionSpec, polygons: list[Polygon], exclusions: list[P
         mission=built.mission,
         summary=summary,
         warnings=tuple(warnings),
+    )
+
+
+def _over_terrain(
+    spec: MissionSpec,
+    built: BuiltMission,
+    frame: LocalFrame,
+    home: HomePosition,
+    home_xy: tuple[float, float],
+    area_lonlat: Polygon | MultiPolygon,
+    alt_agl_m: float,
+    speed_m_s: float,
+    pass_plans: list[PassPlan],
+) -> tuple[BuiltMission, HomePosition, TerrainSummary]:
+    """Terrain-following altitudes (or the spread at constant altitude) from the spec's DEM."""
+    assert spec.terrain is not None
+    # Read only the DEM around the area and home (with a margin for the turnarounds).
+    west, south, east, north = area_lonlat.bounds
+    west, east = min(west, home.lon_deg), max(east, home.lon_deg)
+    south, north = min(south, home.lat_deg), max(north, home.lat_deg)
+    margin = 0.01
+    dem = Dem.from_geotiff(spec.terrain.dem_path, bounds_lonlat=(west - margin, south - margin,
+                                                                  east + margin, north + margin))  # fmt: skip
+    footprint = spec.camera.footprint(alt_agl_m, spec.orientation)
+    return apply_terrain(
+        built,
+        dem=dem,
+        terrain=spec.terrain,
+        frame=frame,
+        home=home,
+        home_xy=home_xy,
+        alt_agl_m=alt_agl_m,
+        speed_m_s=speed_m_s,
+        max_alt_agl_m=spec.vehicle.max_alt_agl_m,
+        line_spacing_by_pass_m={p.index: p.line_spacing_m for p in pass_plans},
+        footprint_across_m=footprint.across_m,
+        footprint_along_m=footprint.along_m,
     )
 
 

@@ -79,6 +79,21 @@ def command(spec_file: Path, out_dir: Path, overwrite: bool, as_json: bool, no_p
             assert key is not None and fmt is not None
             value = fmt.format(summary[key])
         rows.append((label, value))
+    terrain = plan.summary.terrain
+    if terrain is not None:
+        mode = "follows the ground" if terrain["follow"] else "constant above home"
+        agl = f"{terrain['station_alt_agl_min_m']:.1f}-{terrain['station_alt_agl_max_m']:.1f} m"
+        gsd = f"{terrain['gsd_min_cm']:.2f}-{terrain['gsd_max_cm']:.2f} cm"
+        lows = (
+            f"{terrain['front_overlap_min_pct']:.0f} % forward, {terrain['side_overlap_min_pct']:.0f} % side"
+        )
+        rows += [
+            ("terrain", f"{terrain['dem']}, altitude {mode}"),
+            ("height above ground", agl),
+            ("GSD over the terrain", gsd),
+            ("lowest overlaps", lows),
+            ("waypoints added for terrain", f"{terrain['waypoints_added']}"),
+        ]
     echo_table(rows, title=f"{plan.name}: planned into {out_dir}")
     for warning in plan.warnings:
         click.echo(f"warning: {warning}", err=True)

@@ -1,4 +1,6 @@
-"""acquisition.geotag: matching, interpolation, the whole job on real JPEGs, and bad input.
+"""Geotagging: matching (acquisition.matching), attitude math (acquisition.attitude),
+interpolation (acquisition.interpolation), the whole job on real JPEGs and bad input
+(acquisition.geotag).
 
 Synthetic survey (seeded): 6 lines x 10 camera events every 2 s at 10 m/s, 25 m-radius turns
 (about 10 s without events), positions at 10 Hz. Frames = events + a camera clock offset of
@@ -27,7 +29,7 @@ from hypothesis import strategies as st
 from PIL import Image
 from shared_data import SHARED_DATA
 
-from acquisition import exif, geotag, sidecars
+from acquisition import attitude, exif, geotag, interpolation, matching, sidecars
 from acquisition.errors import GeotagError
 from acquisition.geotag import FrameStatus, GeotagOptions, OffsetSource
 from acquisition.telemetry.model import AttitudeTrack, CameraEvents, FlightLog, PositionTrack
@@ -233,7 +235,7 @@ def test_matcher_finds_offset_dropped_and_extra(flight: Flight) -> None:
     times, truth = frame_times(flight)
     events = flight.log.events
     assert events is not None
-    m = geotag.match_frames_to_events(times, events.time_utc_s)
+    m = matching.match_frames_to_events(times, events.time_utc_s)
     assert abs(m.offset_s - TRUE_OFFSET_S) < 0.03
     assert sorted(m.unmatched_events.tolist()) == list(DROPPED)
     assert m.unmatched_frames.tolist() == [truth.index(None)]
@@ -250,7 +252,7 @@ def test_matcher_input_order_does_not_matter(flight: Flight) -> None:
     events = flight.log.events
     assert events is not None
     perm = np.random.default_rng(5).permutation(times.size)
-    m = geotag.match_frames_to_events(times[perm], events.time_utc_s[::-1])
+    m = matching.match_frames_to_events(times[perm], events.time_utc_s[::-1])
     n_events = len(events)
     for frame_index, event_index in m.pairs:
         assert truth[perm[frame_index]] == n_events - 1 - event_index
@@ -265,7 +267,7 @@ def test_matcher_estimates_drift_on_a_long_flight() -> None:
     t_mid = float(np.mean(events.time_utc_s))
     times = events.time_utc_s + TRUE_OFFSET_S + drift * (events.time_utc_s - t_mid)
     times = np.delete(times + rng.normal(0, 0.02, times.size), [10, 500, 501, 900])
-    m = geotag.match_frames_to_events(times, events.time_utc_s)
+    m = matching.match_frames_to_events(times, events.time_utc_s)
     assert m.drift_ppm == pytest.approx(40.0, abs=5.0)
     assert m.offset_s == pytest.approx(TRUE_OFFSET_S, abs=0.01)
     assert sorted(m.unmatched_events.tolist()) == [10, 500, 501, 900]
@@ -274,10 +276,10 @@ def test_matcher_estimates_drift_on_a_long_flight() -> None:
 
 def test_regular_sequence_is_flagged_ambiguous() -> None:
     events = START_S + 2.0 * np.arange(30)
-    m = geotag.match_frames_to_events(events + 12.0, events)
+    m = matching.match_frames_to_events(events + 12.0, events)
     assert m.ambiguous and "--offset-s" in m.warnings[0]
     # Given the offset, that alignment is used and refined.
-    given_m = geotag.match_frames_to_events(events + 12.0, events, offset_s=14.0)
+    given_m = matching.match_frames_to_events(events + 12.0, events, offset_s=14.0)
     assert given_m.offset_s == pytest.approx(14.0)
     assert given_m.pairs[:, 0].tolist() == list(range(1, 30))  # frame i on event i - 1
     assert given_m.pairs[:, 1].tolist() == list(range(29))
@@ -310,7 +312,7 @@ def test_matcher_property_random_surveys(seed: int, offset_s: float, interval_s:
     frames.sort()
     f = np.array([t for t, _ in frames])
     truth = [j for _, j in frames]
-    m = geotag.match_frames_to_events(f, e)
+    m = matching.match_frames_to_events(f, e)
     assert all(truth[a] == b for a, b in m.pairs)
     assert set(m.unmatched_events.tolist()) == dropped
     assert [truth[k] for k in m.unmatched_frames] == [-1] * sum(1 for j in truth if j == -1)
@@ -356,11 +358,11 @@ def test_irreconcilable_sequences_raise() -> None:
     assert events is not None
     other_day = np.sort(np.random.default_rng(2).uniform(0, 200, 50)) + START_S + 86_400
     with pytest.raises(GeotagError, match=r"cannot be reconciled.*50 frames, 60 events"):
-        geotag.match_frames_to_events(other_day, events.time_utc_s)
+        matching.match_frames_to_events(other_day, events.time_utc_s)
     with pytest.raises(GeotagError, match=r"too few.*--offset-s"):
-        geotag.match_frames_to_events([START_S, START_S + 2], events.time_utc_s)
+        matching.match_frames_to_events([START_S, START_S + 2], events.time_utc_s)
     with pytest.raises(GeotagError, match="nothing to match"):
-        geotag.match_frames_to_events([], events.time_utc_s)
+        matching.match_frames_to_events([], events.time_utc_s)
 
 
 # ============================================================================ attitude
@@ -373,7 +375,7 @@ def test_irreconcilable_sequences_raise() -> None:
     roll=st.floats(-170, 170),
 )
 def test_euler_quaternion_round_trip(yaw: float, pitch: float, roll: float) -> None:
-    y, p, r = geotag.euler_deg_from_quat(geotag.quat_from_euler_deg(yaw, pitch, roll))
+    y, p, r = attitude.euler_deg_from_quat(attitude.quat_from_euler_deg(yaw, pitch, roll))
     assert (float(y[0]) - yaw + 180.0) % 360.0 - 180.0 == pytest.approx(0.0, abs=1e-6)
     assert float(p[0]) == pytest.approx(pitch, abs=1e-6)
     assert float(r[0]) == pytest.approx(roll, abs=1e-6)
@@ -388,12 +390,12 @@ def test_euler_quaternion_round_trip(yaw: float, pitch: float, roll: float) -> N
 def test_slerp_moves_at_constant_rate_along_the_short_arc(
     a: tuple[float, float, float], b: tuple[float, float, float], t: float
 ) -> None:
-    qa, qb = geotag.quat_from_euler_deg(*a), geotag.quat_from_euler_deg(*b)
+    qa, qb = attitude.quat_from_euler_deg(*a), attitude.quat_from_euler_deg(*b)
 
     def angle(q1: np.ndarray, q2: np.ndarray) -> float:
         return 2 * math.acos(min(1.0, abs(float(np.sum(q1 * q2)))))
 
-    q = geotag.slerp(qa, qb, [t])
+    q = attitude.slerp(qa, qb, [t])
     total = angle(qa, qb)
     assert total <= math.pi + 1e-9
     assert angle(qa, q) == pytest.approx(t * total, abs=1e-6)
@@ -401,25 +403,25 @@ def test_slerp_moves_at_constant_rate_along_the_short_arc(
 
 
 def test_slerp_wraps_yaw_through_north() -> None:
-    q = geotag.slerp(geotag.quat_from_euler_deg(350, 0, 0), geotag.quat_from_euler_deg(10, 0, 0), [0.5])
-    yaw, _, _ = geotag.euler_deg_from_quat(q)
+    q = attitude.slerp(attitude.quat_from_euler_deg(350, 0, 0), attitude.quat_from_euler_deg(10, 0, 0), [0.5])
+    yaw, _, _ = attitude.euler_deg_from_quat(q)
     assert min(float(yaw[0]), 360 - float(yaw[0])) == pytest.approx(0.0, abs=1e-9)
 
 
 def test_camera_attitude_with_gimbal() -> None:
     vehicle = ([30.0], [10.0], [-5.0])
     # No gimbal: a camera fixed to the airframe, looking down, carries the vehicle's angles.
-    y, p, r = geotag.camera_attitude_deg(vehicle)
+    y, p, r = attitude.camera_attitude_deg(vehicle)
     assert (float(y[0]), float(p[0]), float(r[0])) == pytest.approx((30.0, 10.0, -5.0))
     # Earth-frame gimbal looking straight down, yaw 45: level camera, yaw 45.
-    y, p, r = geotag.camera_attitude_deg(vehicle, ([45.0], [-90.0], [0.0]), geotag.GimbalMode.EARTH)
+    y, p, r = attitude.camera_attitude_deg(vehicle, ([45.0], [-90.0], [0.0]), attitude.GimbalMode.EARTH)
     assert (float(y[0]), float(p[0]), float(r[0])) == pytest.approx((45.0, 0.0, 0.0), abs=1e-9)
     # Stabilized: the gimbal yaw is relative to the nose.
-    y, p, _ = geotag.camera_attitude_deg(vehicle, ([15.0], [-80.0], [0.0]), geotag.GimbalMode.STABILIZED)
+    y, p, _ = attitude.camera_attitude_deg(vehicle, ([15.0], [-80.0], [0.0]), attitude.GimbalMode.STABILIZED)
     assert (float(y[0]), float(p[0])) == pytest.approx((45.0, 10.0), abs=1e-9)
     # Body: the gimbal turns with the airframe; pitch -90 on a 10 deg nose-up vehicle -> 10 deg.
-    y, p, _ = geotag.camera_attitude_deg(
-        ([0.0], [10.0], [0.0]), ([0.0], [-90.0], [0.0]), geotag.GimbalMode.BODY
+    y, p, _ = attitude.camera_attitude_deg(
+        ([0.0], [10.0], [0.0]), ([0.0], [-90.0], [0.0]), attitude.GimbalMode.BODY
     )
     assert (float(y[0]), float(p[0])) == pytest.approx((0.0, 10.0), abs=1e-9)
 
@@ -430,7 +432,7 @@ def test_camera_attitude_with_gimbal() -> None:
 def test_interpolation_on_a_straight_line(flight: Flight) -> None:
     events = flight.log.events
     assert events is not None and flight.log.positions is not None
-    result = geotag.interpolate_poses(
+    result = interpolation.interpolate_poses(
         events.time_utc_s, positions=flight.log.positions, attitudes=flight.log.attitudes
     )
     for k, pose in enumerate(result.poses):
@@ -452,7 +454,7 @@ def test_interpolation_outside_and_in_gaps(flight: Flight) -> None:
         lat_deg=positions.lat_deg[keep],
         lon_deg=positions.lon_deg[keep],
     )
-    result = geotag.interpolate_poses(
+    result = interpolation.interpolate_poses(
         [START_S - 100, START_S + 15, START_S + 5, float(positions.time_utc_s[-1]) + 60],
         positions=holed,
         max_gap_s=5.0,

@@ -1,0 +1,295 @@
+"""Terrain following: waypoint altitudes that keep the height above ground, and the GSD and
+overlap spread over the terrain.
+
+With a DEM the planned path is sampled every ``sample_spacing_m``. Following the terrain, the
+target altitude is ground + height above ground; the altitude profile flown is the lowest one at
+or above the target whose climbs and descents the vehicle can fly at its speed
+(``max_climb_rate_m_s``, ``max_descent_rate_m_s``): a forward pass bounds descents, a backward
+pass starts climbs early enough. Waypoints are then added where a straight leg between the
+existing ones would depart from that profile by more than ``tolerance_m`` (recursive split at
+the worst sample, as Douglas-Peucker does). Altitudes stay relative to home (barometric on the
+vehicle), home's elevation taken from the DEM.
+
+Without following (constant altitude above home), the path is only checked for ground
+clearance, and the spread is reported: higher ground is closer to the camera, so its GSD is
+finer and its overlap lower (Aber et al. 2019, ch. 3).
+
+Stations keep their horizontal positions (distance triggering is horizontal); their altitude
+is the flown profile at their distance along the path, and their footprint and GSD follow their
+height above the ground below them.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .errors import PlanningError
+from .geo import LocalFrame
+from .mission import HomePosition, MavCmd, MissionItem
+from .mission_builder import BuiltMission
+from .spec import TerrainSpec
+from .terrain import Dem
+
+log = logging.getLogger(__name__)
+
+#: A flight closer to the ground than this, anywhere on the path, is refused.
+MIN_CLEARANCE_M = 5.0
+
+
+@dataclass(frozen=True, kw_only=True)
+class TerrainSummary:
+    """How the terrain shapes the plan (summary.json's ``terrain``)."""
+
+    dem: str
+    follow: bool
+    home_ground_amsl_m: float
+    ground_min_amsl_m: float
+    ground_max_amsl_m: float
+    station_alt_agl_min_m: float
+    station_alt_agl_max_m: float
+    gsd_min_cm: float
+    gsd_max_cm: float
+    front_overlap_min_pct: float
+    side_overlap_min_pct: float
+    path_alt_agl_min_m: float
+    path_alt_agl_max_m: float
+    alt_rel_home_max_m: float
+    waypoints_added: int
+
+    def as_dict(self) -> dict[str, object]:
+        return dataclasses.asdict(self)
+
+
+def rate_limited_profile(
+    s_m: NDArray[np.float64],
+    target_m: NDArray[np.float64],
+    speed_m_s: float,
+    max_climb_rate_m_s: float,
+    max_descent_rate_m_s: float,
+) -> NDArray[np.float64]:
+    """The lowest altitude profile >= ``target_m`` whose slopes the vehicle can fly: climbing at
+    most ``max_climb_rate_m_s`` and descending at most ``max_descent_rate_m_s`` at ``speed_m_s``
+    over the distance ``s_m`` (ascending)."""
+    a = target_m.astype(float).copy()
+    ds = np.diff(s_m)
+    down = max_descent_rate_m_s / speed_m_s * ds
+    up = max_climb_rate_m_s / speed_m_s * ds
+    for k in range(1, len(a)):  # descents no steeper than allowed
+        a[k] = max(a[k], a[k - 1] - down[k - 1])
+    for k in range(len(a) - 2, -1, -1):  # climbs started early enough
+        a[k] = max(a[k], a[k + 1] - up[k])
+    return a
+
+
+def _split_leg(s: NDArray[np.float64], a: NDArray[np.float64], tolerance_m: float) -> list[int]:
+    """Indices (inside the leg's samples) where waypoints keep a straight-line interpolation
+    within ``tolerance_m`` of the profile ``a`` (first and last samples are the leg's ends)."""
+    out: list[int] = []
+
+    def recurse(i: int, j: int) -> None:
+        if j - i < 2:
+            return
+        t = (s[i + 1 : j] - s[i]) / (s[j] - s[i]) if s[j] > s[i] else np.zeros(j - i - 1)
+        line = a[i] + t * (a[j] - a[i])
+        dev = np.abs(line - a[i + 1 : j])
+        k = int(np.argmax(dev))
+        if dev[k] > tolerance_m:
+            m = i + 1 + k
+            recurse(i, m)
+            out.append(m)
+            recurse(m, j)
+
+    recurse(0, len(s) - 1)
+    return out
+
+
+def apply_terrain(
+    built: BuiltMission,
+    *,
+    dem: Dem,
+    terrain: TerrainSpec,
+    frame: LocalFrame,
+    home: HomePosition,
+    home_xy: tuple[float, float],
+    alt_agl_m: float,
+    speed_m_s: float,
+    max_alt_agl_m: float,
+    line_spacing_by_pass_m: dict[int, float],
+    footprint_across_m: float,
+    footprint_along_m: float,
+) -> tuple[BuiltMission, HomePosition, TerrainSummary]:
+    """Waypoint altitudes, extra waypoints and station heights over the DEM (module docstring)."""
+    path = built.path_xy_m
+    home_ground = float(dem.elevation_at(np.array([home_xy[0]]), np.array([home_xy[1]]), frame)[0])
+
+    # Sample every leg of the path (both ends included), remembering where legs start.
+    s_parts, x_parts, y_parts = [], [], []
+    for k in range(len(path) - 1):
+        (x0, y0), (x1, y1) = path[k], path[k + 1]
+        length = built.path_s_m[k + 1] - built.path_s_m[k]
+        n = max(1, math.ceil(length / terrain.sample_spacing_m))
+        t = np.linspace(0.0, 1.0, n + 1)[:-1] if k < len(path) - 2 else np.linspace(0.0, 1.0, n + 1)
+        s_parts.append(built.path_s_m[k] + t * length)
+        x_parts.append(x0 + t * (x1 - x0))
+        y_parts.append(y0 + t * (y1 - y0))
+        s = np.concatenate(s_parts)
+    x = np.concatenate(x_parts)
+    y = np.concatenate(y_parts)
+    ground = dem.elevation_at(x, y, frame)
+
+    if terrain.follow:
+        profile = rate_limited_profile(
+            s, ground + alt_agl_m, speed_m_s, terrain.max_climb_rate_m_s, terrain.max_descent_rate_m_s
+        )
+    else:
+        profile = np.full_like(s, home_ground + alt_agl_m)
+
+    # Waypoints: the path points (their profile altitude) plus the splits of each leg.
+    point_sample = np.searchsorted(s, built.path_s_m - 1e-9)
+    point_sample[-1] = len(s) - 1
+    extra_by_leg: dict[int, list[int]] = {}
+    if terrain.follow:
+        for k in range(len(path) - 1):
+            i, j = int(point_sample[k]), int(point_sample[k + 1])
+            splits = _split_leg(s[i : j + 1], profile[i : j + 1], terrain.tolerance_m)
+            if splits:
+                extra_by_leg[k] = [i + m for m in splits]
+
+    # Rebuild the items: path-point waypoints get their altitude; extra waypoints go in front.
+    item_to_point = {idx: k for k, idx in enumerate(built.path_item_index) if idx is not None}
+    old = built.mission.items
+    items: list[MissionItem] = []
+    wp_s: list[float] = [0.0]
+    wp_alt: list[float] = [float(profile[0])]
+
+    def extra_waypoints(k_leg: int) -> None:
+        for m in extra_by_leg.get(k_leg, []):
+            lon, lat = frame.to_lonlat(x[m], y[m])
+            items.append(MissionItem.waypoint(float(lat), float(lon), float(profile[m] - home_ground)))
+            wp_s.append(float(s[m]))
+            wp_alt.append(float(profile[m]))
+
+    for index, item in enumerate(old):
+        if index in item_to_point:
+            k = item_to_point[index]
+            extra_waypoints(k - 1)
+            alt_rel = float(profile[point_sample[k]] - home_ground)
+            items.append(dataclasses.replace(item, param7=alt_rel))
+            wp_s.append(float(built.path_s_m[k]))
+            wp_alt.append(float(profile[point_sample[k]]))
+        elif int(item.command) == MavCmd.NAV_RETURN_TO_LAUNCH:
+            extra_waypoints(len(path) - 2)  # the way home keeps its clearance too
+            items.append(item)
+        else:
+            items.append(item)
+    wp_s.append(float(s[-1]))
+    wp_alt.append(float(profile[-1]))
+
+    # What the vehicle flies: straight legs between waypoints.
+    flown = np.interp(s, np.asarray(wp_s), np.asarray(wp_alt))
+    agl_path = flown - ground
+    # The take-off climb and the final descent are at home, not along the legs.
+    body = slice(int(point_sample[1]) if len(point_sample) > 2 else 0, int(point_sample[-2]) + 1)
+    clearance = float(np.min(agl_path[body])) if agl_path[body].size else alt_agl_m
+    if clearance < MIN_CLEARANCE_M:
+        m = int(np.argmin(np.where(np.arange(len(s)) >= body.start, agl_path, np.inf)))
+        lon, lat = frame.to_lonlat(x[m], y[m])
+        raise PlanningError(
+            f"the path passes {clearance:.1f} m above the ground at lon {float(lon):.6f}, lat "
+            f"{float(lat):.6f} (the DEM rises {float(ground[m] - home_ground):.0f} m above home); "
+            f"set follow = true in [terrain], or fly higher"
+        )
+    agl_max = float(np.max(agl_path[body])) if agl_path[body].size else alt_agl_m
+    if agl_max > max_alt_agl_m + 1e-6:
+        m = int(np.argmax(np.where(np.arange(len(s)) >= body.start, agl_path, -np.inf)))
+        lon, lat = frame.to_lonlat(x[m], y[m])
+        raise PlanningError(
+            f"the path is {agl_max:.1f} m above the ground at lon {float(lon):.6f}, lat {float(lat):.6f}, "
+            f"above max_alt_agl_m = {max_alt_agl_m:g} (the ground falls away faster than the vehicle "
+            f"may descend); raise max_descent_rate_m_s or lower speed_m_s"
+            if terrain.follow
+            else f"the ground falls {float(home_ground - ground[m]):.0f} m below home at lon "
+            f"{float(lon):.6f}, lat {float(lat):.6f}, so the flight is {agl_max:.1f} m above it, "
+            f"above max_alt_agl_m = {max_alt_agl_m:g}; set follow = true in [terrain]"
+        )
+
+    # Stations: altitude from the flown legs, height above the ground below them.
+    st = built.stations
+    n = len(st)
+    st_alt = np.interp(built.station_s_m, np.asarray(wp_s), np.asarray(wp_alt))
+    st_ground = dem.elevation_at(st.x_m, st.y_m, frame) if n else np.zeros(0)
+    st_agl = st_alt - st_ground
+    # Over locally flat ground a frame's footprint scales about the camera with its height.
+    scale = st_agl / alt_agl_m
+    corners = st.footprint_xy_m
+    if n:
+        centre = np.stack([st.x_m, st.y_m], axis=-1)[:, None, :]
+        corners = centre + (st.footprint_xy_m - centre) * scale[:, None, None]
+        clon, clat = frame.to_lonlat(corners[..., 0].ravel(), corners[..., 1].ravel())
+        corners_ll = np.stack([clon.reshape(n, 4), clat.reshape(n, 4)], axis=-1)
+    else:
+        corners_ll = st.footprint_lonlat_deg
+    stations = dataclasses.replace(
+        st,
+        alt_rel_home_m=st_alt - home_ground,
+        alt_agl_m=st_agl,
+        gsd_cm=st.gsd_cm * scale,
+        footprint_xy_m=corners,
+        footprint_lonlat_deg=corners_ll,
+    )
+    front_min, side_min = _overlap_minimums(
+        stations, scale, footprint_along_m, footprint_across_m, line_spacing_by_pass_m
+    )
+    new_home = dataclasses.replace(home, alt_amsl_m=home_ground)
+    mission = dataclasses.replace(built.mission, items=tuple(items), home=new_home)
+    summary = TerrainSummary(
+        dem=dem.path.name,
+        follow=terrain.follow,
+        home_ground_amsl_m=home_ground,
+        ground_min_amsl_m=float(ground.min()),
+        ground_max_amsl_m=float(ground.max()),
+        station_alt_agl_min_m=float(st_agl.min()) if n else alt_agl_m,
+        station_alt_agl_max_m=float(st_agl.max()) if n else alt_agl_m,
+        gsd_min_cm=float(stations.gsd_cm.min()) if n else 0.0,
+        gsd_max_cm=float(stations.gsd_cm.max()) if n else 0.0,
+        front_overlap_min_pct=front_min,
+        side_overlap_min_pct=side_min,
+        path_alt_agl_min_m=clearance,
+        path_alt_agl_max_m=agl_max,
+        alt_rel_home_max_m=float(np.max(flown) - home_ground),
+        waypoints_added=sum(len(v) for v in extra_by_leg.values()),
+    )
+    log.info("terrain: %d waypoints added, height above ground %.1f-%.1f m", summary.waypoints_added,
+             summary.station_alt_agl_min_m, summary.station_alt_agl_max_m)  # fmt: skip
+    return dataclasses.replace(built, mission=mission, stations=stations), new_home, summary
+
+
+def _overlap_minimums(
+    stations: object,
+    scale: NDArray[np.float64],
+    along_m: float,
+    across_m: float,
+    spacing_by_pass: dict[int, float],
+) -> tuple[float, float]:
+    """Smallest forward and side overlap (percent) of the nadir frames, from each frame's own
+    height above ground (a frame's footprint scales with it)."""
+    from .plan import Stations
+
+    assert isinstance(stations, Stations)
+    nadir = stations.tilt_deg == 0.0
+    if not nadir.any():
+        return 0.0, 0.0
+    x, y, sc = stations.x_m[nadir], stations.y_m[nadir], scale[nadir]
+    line, pas = stations.line_index[nadir], stations.pass_index[nadir]
+    step = np.hypot(np.diff(x), np.diff(y))
+    same = (np.diff(line) == 0) & (np.diff(pas) == 0) & (step < along_m)
+    front = 1.0 - step[same] / (along_m * np.minimum(sc[:-1], sc[1:])[same])
+    spacing = np.array([spacing_by_pass[int(p)] for p in pas])
+    side = 1.0 - spacing / (across_m * sc)
+    return (float(100.0 * front.min()) if front.size else 100.0), float(100.0 * side.min())

@@ -1,0 +1,187 @@
+"""Terrain following and the spread over terrain, checked on what the vehicle would fly: the
+mission's own waypoints (positions and altitudes above home) against the DEM."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import rasterio
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from rasterio.transform import from_origin
+from survey_oracles import replay_triggers
+
+from planner.errors import PlanningError, SpecError, TerrainError
+from planner.mission import MavCmd
+from planner.plan import SurveyPlan
+from planner.spec import load_spec
+from planner.survey import plan_survey
+from planner.terrain import Dem
+from planner.terrain_follow import rate_limited_profile
+
+REPO = Path(__file__).resolve().parents[2]
+MISSIONS = REPO / "missions"
+
+
+def flown_agl(plan: SurveyPlan, dem: Dem, step_m: float = 2.0) -> tuple[np.ndarray, np.ndarray]:
+    """Height above the DEM along the straight legs between the mission's waypoints, from the
+    first to the last waypoint (take-off and landing at home excluded), and the leg slopes."""
+    home_ground = plan.home.alt_amsl_m
+    wps = [it for it in plan.mission.items if it.command == MavCmd.NAV_WAYPOINT]
+    lon = np.array([w.lon_deg for w in wps])
+    lat = np.array([w.lat_deg for w in wps])
+    x, y = plan.frame.to_xy(lon, lat)
+    alt = np.array([w.alt_m for w in wps]) + home_ground
+    agl = []
+    for k in range(len(wps) - 1):
+        n = max(1, math.ceil(math.hypot(x[k + 1] - x[k], y[k + 1] - y[k]) / step_m))
+        t = np.linspace(0.0, 1.0, n + 1)
+        px, py = x[k] + t * (x[k + 1] - x[k]), y[k] + t * (y[k + 1] - y[k])
+        agl.append(alt[k] + t * (alt[k + 1] - alt[k]) - dem.elevation_at(px, py, plan.frame))
+    legs = np.hypot(np.diff(x), np.diff(y))
+    slopes = np.diff(alt)[legs > 1e-6] / legs[legs > 1e-6]
+    return np.concatenate(agl), slopes
+
+
+@pytest.fixture(scope="module")
+def terrain_plan() -> SurveyPlan:
+    return plan_survey(load_spec(MISSIONS / "bardenas-gully-terrain.toml"))
+
+
+@pytest.fixture(scope="module")
+def dem() -> Dem:
+    return Dem.from_geotiff(MISSIONS / "bardenas-gully-dem.tif")
+
+
+def test_following_keeps_the_height_above_ground(terrain_plan: SurveyPlan, dem: Dem) -> None:
+    spec = load_spec(MISSIONS / "bardenas-gully-terrain.toml")
+    assert spec.terrain is not None
+    target = terrain_plan.summary.altitude_agl_m
+    tolerance = spec.terrain.tolerance_m
+    agl, slopes = flown_agl(terrain_plan, dem)
+    assert agl.min() >= target - tolerance - 0.05
+    assert agl.max() <= spec.vehicle.max_alt_agl_m
+    # the hill (40 m) is followed: without following the height would vary by tens of metres
+    stations_agl = terrain_plan.stations.alt_agl_m
+    assert stations_agl.min() >= target - tolerance - 0.05
+    assert stations_agl.max() <= target + tolerance + 0.5
+    # climbs and descents within the rates at the survey speed
+    speed = spec.survey.speed_m_s
+    assert slopes.max() <= spec.terrain.max_climb_rate_m_s / speed + 1e-6
+    assert slopes.min() >= -spec.terrain.max_descent_rate_m_s / speed - 1e-6
+    terrain = terrain_plan.summary.terrain
+    assert terrain is not None and int(terrain["waypoints_added"]) > 0  # type: ignore[call-overload]
+    # home's elevation comes from the DEM
+    hx, hy = terrain_plan.frame.to_xy([terrain_plan.home.lon_deg], [terrain_plan.home.lat_deg])
+    home_ground = float(dem.elevation_at(hx, hy, terrain_plan.frame)[0])
+    assert terrain_plan.home.alt_amsl_m == pytest.approx(home_ground)
+
+
+def test_following_keeps_stations_and_trigger_plan(terrain_plan: SurveyPlan) -> None:
+    flat = plan_survey(load_spec(MISSIONS / "bardenas-gully.toml"))
+    # the same horizontal stations: distance triggering is horizontal
+    assert len(terrain_plan.stations) == len(flat.stations)
+    np.testing.assert_allclose(terrain_plan.stations.x_m, flat.stations.x_m, atol=1e-6)
+    fired = replay_triggers(terrain_plan.mission, terrain_plan.frame.to_xy)
+    assert len(fired) == len(terrain_plan.stations)
+    planned = np.column_stack([terrain_plan.stations.x_m, terrain_plan.stations.y_m])
+    assert np.max(np.hypot(*(fired - planned).T)) < 0.1
+
+
+def test_constant_altitude_reports_the_spread(tmp_path: Path, dem: Dem) -> None:
+    source = (MISSIONS / "bardenas-gully-terrain.toml").read_text().replace("follow = true", "follow = false")
+    spec_file = tmp_path / "constant.toml"
+    spec_file.write_text(source.replace('"bardenas-gully', f'"{MISSIONS}/bardenas-gully'))
+    plan = plan_survey(load_spec(spec_file))
+    target = plan.summary.altitude_agl_m
+    st_ground = dem.elevation_at(plan.stations.x_m, plan.stations.y_m, plan.frame)
+    # constant above home: the height above ground is what the DEM says it is
+    np.testing.assert_allclose(
+        plan.stations.alt_agl_m, target - (st_ground - plan.home.alt_amsl_m), atol=1e-6
+    )
+    np.testing.assert_allclose(plan.stations.alt_rel_home_m, target, atol=1e-6)
+    # the textbook: higher ground is closer to the camera, so its GSD is finer
+    high = int(np.argmax(st_ground))
+    low = int(np.argmin(st_ground))
+    assert plan.stations.gsd_cm[high] < plan.stations.gsd_cm[low]
+    assert plan.stations.gsd_cm[high] == pytest.approx(
+        plan.camera.gsd_cm(float(plan.stations.alt_agl_m[high])), rel=1e-9
+    )
+    assert any("overlaps fall" in w for w in plan.warnings)
+
+
+@settings(max_examples=60, deadline=None, derandomize=True)
+@given(
+    target=st.lists(st.floats(0.0, 200.0), min_size=2, max_size=60),
+    climb=st.floats(0.5, 5.0),
+    descent=st.floats(0.5, 5.0),
+)
+def test_rate_limited_profile_is_the_lowest_flyable_one(
+    target: list[float], climb: float, descent: float
+) -> None:
+    s = np.arange(len(target)) * 10.0
+    t = np.asarray(target)
+    a = rate_limited_profile(s, t, 5.0, climb, descent)
+    assert np.all(a >= t - 1e-9)
+    slope = np.diff(a) / 10.0
+    assert slope.max() <= climb / 5.0 + 1e-9
+    assert slope.min() >= -descent / 5.0 - 1e-9
+    # lowest: every point is either on the target or held up by a rate limit from a neighbour
+    for k in range(len(a)):
+        on_target = abs(a[k] - t[k]) < 1e-9
+        held = (k > 0 and abs(a[k] - (a[k - 1] - descent / 5.0 * 10.0)) < 1e-9) or (
+            k < len(a) - 1 and abs(a[k] - (a[k + 1] - climb / 5.0 * 10.0)) < 1e-9
+        )
+        assert on_target or held
+
+
+def test_dem_that_does_not_cover_the_area(tmp_path: Path) -> None:
+    tif = tmp_path / "far.tif"
+    with rasterio.open(
+        tif, "w", driver="GTiff", height=10, width=10, count=1, dtype="float32",
+        crs="EPSG:32630", transform=from_origin(100000.0, 4000000.0, 5.0, 5.0),
+    ) as d:  # fmt: skip
+        d.write(np.zeros((10, 10), "float32"), 1)
+    source = (MISSIONS / "bardenas-gully-terrain.toml").read_text()
+    spec_file = tmp_path / "far.toml"
+    spec_file.write_text(
+        source.replace('"bardenas-gully-dem.tif"', f'"{tif}"').replace(
+            '"bardenas-gully.geojson"', f'"{MISSIONS}/bardenas-gully.geojson"'
+        )
+    )
+    with pytest.raises(TerrainError, match="does not cover"):
+        plan_survey(load_spec(spec_file))
+
+
+def test_terrain_spec_errors(tmp_path: Path) -> None:
+    source = (MISSIONS / "bardenas-gully-terrain.toml").read_text()
+    bad = tmp_path / "bad.toml"
+    bad.write_text(source.replace('"bardenas-gully-dem.tif"', '"missing.tif"'))
+    with pytest.raises(SpecError, match=r"missing\.tif"):
+        load_spec(bad)
+    bad.write_text(source.replace("tolerance_m = 2", "tolerance = 2"))
+    with pytest.raises(SpecError, match="unknown key tolerance in \\[terrain\\]"):
+        load_spec(bad)
+
+
+def test_cliff_steeper_than_the_vehicle_can_descend_is_refused(tmp_path: Path) -> None:
+    # a 150 m drop across the area: following it at 0.1 m/s descent is impossible within 120 m AGL
+    source = (MISSIONS / "bardenas-gully-terrain.toml").read_text()
+    tif = tmp_path / "cliff.tif"
+    with rasterio.open(MISSIONS / "bardenas-gully-dem.tif") as src:
+        z = src.read(1)
+        z[:, 100:] -= 150.0
+        meta = src.meta.copy()
+    with rasterio.open(tif, "w", **meta) as d:
+        d.write(z, 1)
+    spec_file = tmp_path / "cliff.toml"
+    spec_file.write_text(
+        source.replace('"bardenas-gully-dem.tif"', f'"{tif}"')
+        .replace('"bardenas-gully.geojson"', f'"{MISSIONS}/bardenas-gully.geojson"')
+        .replace("max_descent_rate_m_s = 2", "max_descent_rate_m_s = 0.1")
+    )
+    with pytest.raises(PlanningError, match="max_descent_rate_m_s"):
+        plan_survey(load_spec(spec_file))
