@@ -2,8 +2,10 @@
 
 :func:`run_check` projects every frame onto the ground, counts the views per ground cell over
 the area, finds the gaps, measures forward and side overlap, base-height ratios, GSD, motion
-blur and scale differences, and judges them against :class:`Thresholds`. The CLI
-(``sfap check``) calls it and exits 0 when the check passes, 1 when it fails.
+blur and scale differences, and judges them against :class:`~processing.verdict.Thresholds`
+(:func:`processing.verdict.judge`, re-exported here). This module is the pipeline and the result
+types it fills (:class:`CheckResult`, :class:`Gap`, :class:`FrameFlag`, :class:`Distribution`).
+The CLI (``sfap check``) calls it and exits 0 when the check passes, 1 when it fails.
 
 The area judged (``CheckResult.area_source`` says which):
 
@@ -47,6 +49,7 @@ from .footprints import Footprints
 from .frames import AttitudeSource, Frames
 from .ground import Ground
 from .inputs import PlanInfo, frames_local_frame
+from .verdict import DEFAULT_THRESHOLDS, Thresholds, judge
 
 log = logging.getLogger(__name__)
 
@@ -54,75 +57,6 @@ log = logging.getLogger(__name__)
 VIEW_LEVELS = (1, 2, 3, 5, 9)
 #: Codes of :attr:`CheckResult.stereo_class`.
 STEREO_NONE, STEREO_WEAK, STEREO_GOOD, STEREO_WIDE = -1, 0, 1, 2
-
-
-@dataclass(frozen=True, kw_only=True)
-class Thresholds:
-    """What a pass needs; every default has its source.
-
-    - ``min_seen_1_pct``: share of the area seen by at least one frame (99 %: a gap of more than
-      1 % of the area is a hole in the model).
-    - ``min_seen_3_pct``: share seen by at least three frames (90 %): SfM-MVS needs far more
-      redundancy than a stereo pair (REFERENCES.md section 1); three views are the least that
-      lets a matcher confirm a point.
-    - ``max_overlap_shortfall_pct``: the median forward and side overlap may fall this many
-      points under the plan's (10; "planned 80/80, got almost zero", REFERENCES.md section 5).
-    - ``max_blur_px``, ``max_blurred_frames_pct``: motion blur per frame above half a pixel
-      (the limit QGC and Mission Planner plan with) is a flagged frame; more than 5 % of the
-      frames flagged fails.
-    - ``min_base_height_ratio``, ``max_base_height_ratio``: the good range of a pair's B/H:
-      above 0.54 (30 deg of intersection) matching gets hard (Wenzel et al. 2013); below 0.1
-      (5.7 deg) depth precision sigma_Z = (H/B)(H/f) sigma_image is ten times worse than the
-      height error of the plan's pixel.
-    - ``min_good_pair_pct``: share of the area seen by at least one pair in that range (90 %).
-    - ``max_scale_difference_pct``: image scales differing by more than 10 % hamper matching
-      (REFERENCES.md section 1): such frames are flagged (a warning).
-    - ``max_gap_area_m2``: any gap larger than this fails, whatever the share seen (25 m2: a
-      5 m x 5 m hole in the orthomosaic is visible; a gap at the edge of a large area can be
-      well under 1 % of it).
-    - ``min_gap_area_m2``: smaller holes are not reported as gaps (crumbs of a cell or two
-      where footprint corners meet).
-    """
-
-    min_seen_1_pct: float = 99.0
-    min_seen_3_pct: float = 90.0
-    max_overlap_shortfall_pct: float = 10.0
-    max_blur_px: float = 0.5
-    max_blurred_frames_pct: float = 5.0
-    min_base_height_ratio: float = 0.1
-    max_base_height_ratio: float = 0.54
-    min_good_pair_pct: float = 90.0
-    max_scale_difference_pct: float = 10.0
-    max_gap_area_m2: float = 25.0
-    min_gap_area_m2: float = 1.0
-
-    def __post_init__(self) -> None:
-        for key in (
-            "min_seen_1_pct",
-            "min_seen_3_pct",
-            "max_overlap_shortfall_pct",
-            "max_blurred_frames_pct",
-            "min_good_pair_pct",
-            "max_scale_difference_pct",
-        ):
-            value = getattr(self, key)
-            if not (math.isfinite(value) and 0.0 <= value <= 100.0):
-                raise ProcessingError(f"threshold {key} = {value} is outside 0-100 %")
-        if not (self.max_blur_px > 0 and math.isfinite(self.max_blur_px)):
-            raise ProcessingError(f"threshold max_blur_px = {self.max_blur_px} must be positive pixels")
-        if not (0.0 < self.min_base_height_ratio < self.max_base_height_ratio):
-            raise ProcessingError(
-                f"B/H range {self.min_base_height_ratio}-{self.max_base_height_ratio} is empty; the minimum "
-                "must be positive and below the maximum"
-            )
-        if not (self.min_gap_area_m2 >= 0.0 and self.max_gap_area_m2 >= self.min_gap_area_m2):
-            raise ProcessingError(
-                f"thresholds min_gap_area_m2 = {self.min_gap_area_m2} and max_gap_area_m2 = "
-                f"{self.max_gap_area_m2} must satisfy 0 <= min <= max"
-            )
-
-    def as_dict(self) -> dict[str, float]:
-        return {key: float(getattr(self, key)) for key in self.__dataclass_fields__}
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -283,12 +217,24 @@ class CheckResult:
         h = Distribution.of(self.height_agl_m)
         if h is not None:
             rows.append(("height above ground", f"median {h.median:.1f} m ({h.min:.1f}-{h.max:.1f} m)"))
-        if self.blur_px is not None:
-            blur = Distribution.of(self.blur_px)
-            if blur is not None:
-                rows.append(("motion blur", f"median {blur.median:.2f} px, max {blur.max:.2f} px"))
+        speed = Distribution.of(self.speed_m_s) if self.speed_m_s is not None else None
+        if self.speed_m_s is None:
+            rows.append(("ground speed", "not measured (no capture times)"))
+        elif speed is None:
+            rows.append(("ground speed", "unknown (no two frames of a line close enough in time)"))
         else:
-            rows.append(("motion blur", "not computed (no capture times or exposure times)"))
+            unknown = int(np.isnan(self.speed_m_s).sum())
+            text = f"median {speed.median:.1f} m/s ({speed.min:.1f}-{speed.max:.1f} m/s)"
+            rows.append(("ground speed", text + (f", unknown for {unknown} frames" if unknown else "")))
+        blur = Distribution.of(self.blur_px) if self.blur_px is not None else None
+        if self.speed_m_s is None:
+            rows.append(("motion blur", "not computed (no capture times)"))
+        elif self.blur_px is None:
+            rows.append(("motion blur", "not computed (no exposure time in the images or the camera)"))
+        elif blur is None:
+            rows.append(("motion blur", "unknown (no frame has a measured speed)"))
+        else:
+            rows.append(("motion blur", f"median {blur.median:.2f} px, max {blur.max:.2f} px"))
         rows.append(
             (
                 "convergent frames",
@@ -375,6 +321,9 @@ class CheckResult:
             },
             "gsd_cm": (d.as_dict() if (d := Distribution.of(self.gsd_cm)) else None),
             "height_agl_m": (d.as_dict() if (d := Distribution.of(self.height_agl_m)) else None),
+            "speed_m_s": (
+                d.as_dict() if self.speed_m_s is not None and (d := Distribution.of(self.speed_m_s)) else None
+            ),
             "blur_px": (
                 d.as_dict() if self.blur_px is not None and (d := Distribution.of(self.blur_px)) else None
             ),
@@ -395,73 +344,6 @@ class CheckResult:
             "stats": self.stats,
             "per_frame": per_frame,
         }
-
-
-# --- the verdict ---------------------------------------------------------------------------------
-
-
-def judge(
-    *,
-    thresholds: Thresholds,
-    seen_pct: dict[int, float],
-    gaps: Sequence[Gap],
-    forward_overlap_pct: Distribution | None,
-    side_overlap_pct: Distribution | None,
-    plan: PlanInfo | None,
-    good_pair_pct: float | None,
-    blurred_count: int,
-    frame_count: int,
-) -> tuple[str, ...]:
-    """The reasons a check fails, each with the figure, the threshold and what it means;
-    empty when it passes."""
-    t = thresholds
-    reasons: list[str] = []
-    if seen_pct[1] < t.min_seen_1_pct:
-        gap_text = (
-            f" ({len(gaps)} gap(s), {sum(g.area_m2 for g in gaps):.0f} m2; largest "
-            f"{max(g.area_m2 for g in gaps):.0f} m2)"
-            if gaps
-            else ""
-        )
-        reasons.append(
-            f"only {seen_pct[1]:.1f} % of the area is seen by any frame (at least {t.min_seen_1_pct:g} % "
-            f"needed){gap_text}: fly the gaps again (--refly writes the mission)"
-        )
-    large = [g for g in gaps if g.area_m2 > t.max_gap_area_m2]
-    if large and seen_pct[1] >= t.min_seen_1_pct:
-        reasons.append(
-            f"{len(large)} gap(s) larger than {t.max_gap_area_m2:g} m2 (largest "
-            f"{max(g.area_m2 for g in large):.0f} m2, gap {large[0].index} in the table): holes in the "
-            "model; fly them again (--refly)"
-        )
-    if seen_pct[3] < t.min_seen_3_pct:
-        reasons.append(
-            f"only {seen_pct[3]:.1f} % of the area is seen by 3 or more frames (at least "
-            f"{t.min_seen_3_pct:g} % needed): too little redundancy to reconstruct reliably"
-        )
-    if plan is not None:
-        for what, dist, planned in (
-            ("forward", forward_overlap_pct, plan.front_overlap_pct),
-            ("side", side_overlap_pct, plan.side_overlap_pct),
-        ):
-            if dist is not None and dist.median < planned - t.max_overlap_shortfall_pct:
-                reasons.append(
-                    f"median {what} overlap {dist.median:.0f} % is more than "
-                    f"{t.max_overlap_shortfall_pct:g} points under the planned {planned:g} %"
-                )
-    if good_pair_pct is not None and good_pair_pct < t.min_good_pair_pct:
-        reasons.append(
-            f"only {good_pair_pct:.1f} % of the area is seen by a pair with a base-height ratio in "
-            f"{t.min_base_height_ratio:g}-{t.max_base_height_ratio:g} (at least {t.min_good_pair_pct:g} % "
-            "needed): depth will be poorly determined"
-        )
-    if frame_count and 100.0 * blurred_count / frame_count > t.max_blurred_frames_pct:
-        reasons.append(
-            f"{blurred_count} of {frame_count} frames ({100.0 * blurred_count / frame_count:.0f} %) have "
-            f"motion blur above {t.max_blur_px:g} px (at most {t.max_blurred_frames_pct:g} % allowed): fly "
-            "slower or use a shorter exposure"
-        )
-    return tuple(reasons)
 
 
 def default_cell_m(footprint_short_side_m: float, area_m2: float, max_cells: int = 4_000_000) -> float:
@@ -502,7 +384,7 @@ def run_check(
     area: Polygon | MultiPolygon | None = None,
     plan: PlanInfo | None = None,
     cell_m: float | None = None,
-    thresholds: Thresholds = Thresholds(),
+    thresholds: Thresholds = DEFAULT_THRESHOLDS,
     progress: Callable[[int, int], None] | None = None,
     ground_description: str | None = None,
     notes: Sequence[str] = (),
@@ -612,6 +494,7 @@ def run_check(
 
     stereo = _stereo(frames, fp, ground, frame, grid, in_area, thresholds)
     warnings.extend(stereo.warnings)
+    all_notes.extend(stereo.notes)
     flagged.extend(stereo.flagged)
 
     if frames.attitude_source is AttitudeSource.ASSUMED_NADIR:
@@ -646,6 +529,7 @@ def run_check(
         good_pair_pct=stereo.good_pair_pct,
         blurred_count=blurred,
         frame_count=len(frames),
+        blur_unknown_count=(int(np.isnan(stereo.blur_px).sum()) if stereo.blur_px is not None else 0),
     )
     lonlat_rings = np.stack(frame.to_lonlat(fp.xy_m[..., 0], fp.xy_m[..., 1]), axis=-1)
     return CheckResult(
@@ -713,6 +597,7 @@ class _Stereo:
     blur_px: NDArray[np.float64] | None
     flagged: tuple[FrameFlag, ...]
     warnings: tuple[str, ...]
+    notes: tuple[str, ...]
     line_count: int
 
 
@@ -729,6 +614,7 @@ def _stereo(
     from .coverage import count_raster
     from .stereo import (
         CONVERGENT_OFF_NADIR_DEG,
+        SPEED_MAX_INTERVAL_RATIO,
         flight_lines,
         forward_overlaps_pct,
         motion_blur,
@@ -768,10 +654,11 @@ def _stereo(
                 ),
             )
         )
-    blur = motion_blur(frames, fp)
+    blur = motion_blur(frames, fp, lines)
     speed = blur.speed_m_s if blur is not None else None
     blur_px = blur.blur_px if blur is not None else None
-    if blur is not None:
+    notes: list[str] = []
+    if blur is not None and blur.blur_px is not None and blur.exposure_s is not None:
         for k in np.flatnonzero(np.nan_to_num(blur.blur_px, nan=0.0) > thresholds.max_blur_px):
             flagged.append(
                 FrameFlag(
@@ -782,6 +669,14 @@ def _stereo(
                         f"{blur.exposure_s[k] * 1000:.2f} ms / {fp.gsd_cm[k]:.2f} cm GSD)"
                     ),
                 )
+            )
+    if blur is not None:
+        unknown = int(np.isnan(blur.speed_m_s).sum())
+        if unknown:
+            notes.append(
+                f"ground speed unknown for {unknown} of {len(frames)} frames: no neighbour on the same "
+                f"flight line within {blur.max_interval_s:.1f} s ({SPEED_MAX_INTERVAL_RATIO:g} x the median "
+                "capture interval); their blur is not judged"
             )
     warnings: list[str] = []
     scale_count = sum(1 for f in flagged if f.kind == "scale")
@@ -806,5 +701,6 @@ def _stereo(
         blur_px=blur_px,
         flagged=tuple(flagged),
         warnings=tuple(warnings),
+        notes=tuple(notes),
         line_count=int(np.unique(lines).size),
     )

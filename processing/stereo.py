@@ -16,8 +16,10 @@ Everything is measured on the footprints of :mod:`processing.footprints`, in the
 - Frames whose GSD differs from the median of their overlapping neighbours' by more than 10 %.
 - A good B/H range, 0.1-0.54 by default (intersection angles of about 6-30 deg; Wenzel et al.
   2013): the share of the area where at least one pair in that range overlaps.
-- Motion blur per frame, pixels: ground speed (from the neighbouring frames' positions and times)
-  x exposure time / GSD.
+- Ground speed per frame (m/s): over the step to its nearer-in-time neighbour on the same flight
+  line, unknown when that neighbour is more than 3 x the median capture interval away
+  (:func:`ground_speeds_m_s`); motion blur, pixels: speed x exposure time / GSD, when an
+  exposure time is known.
 """
 
 from __future__ import annotations
@@ -442,48 +444,101 @@ def good_pair_share_pct(
     return 100.0 * float(((counts > 0) & area_mask).sum()) / cells
 
 
+#: A frame's nearer same-line neighbour further than this many median capture intervals away in
+#: time leaves its speed unknown: over a pause, a turn or dropped frames the straight step between
+#: the two positions says little about the speed at the exposure.
+SPEED_MAX_INTERVAL_RATIO = 3.0
+
+
 @dataclass(frozen=True, kw_only=True)
 class MotionBlur:
-    """Per frame: ground speed (m/s), exposure (s) and blur (pixels); ``exposure_source`` says
-    where the exposure came from ("exif" or "camera")."""
+    """Per frame: ground speed (m/s, NaN where unknown), exposure (s) and blur (pixels, NaN where
+    the speed is unknown); ``exposure_s`` and ``blur_px`` are None when no exposure time is known,
+    and ``exposure_source`` then too, else it says where the exposure came from ("exif" or
+    "camera"). ``max_interval_s``: the longest interval a speed may be measured over (s; 0 when no
+    two frames of a line have distinct times)."""
 
     speed_m_s: F64
-    exposure_s: F64
-    blur_px: F64
-    exposure_source: str
+    exposure_s: F64 | None
+    blur_px: F64 | None
+    exposure_source: str | None
+    max_interval_s: float
 
 
-def motion_blur(frames: Frames, footprints: Footprints) -> MotionBlur | None:
-    """Blur in pixels = ground speed x exposure / GSD; None without capture times or exposure.
+def ground_speeds_m_s(
+    frames: Frames,
+    footprints: Footprints,
+    lines: NDArray[np.int64],
+    *,
+    max_interval_ratio: float = SPEED_MAX_INTERVAL_RATIO,
+) -> tuple[F64, float]:
+    """Ground speed of each frame at its exposure (m/s, NaN where unknown), and the longest
+    interval a speed may be measured over (s; 0 when no two frames of a line have distinct times).
 
-    The speed of a frame is the slower of the mean speeds to its previous and next frames in time
-    (the camera fires on the line, not in the turn, so the slower neighbour is the closer estimate).
+    The speed of a frame is the 3D distance to its nearer-in-time neighbour (previous or next
+    frame in capture order) of the same flight line, over the time between them: the camera
+    fires on the line, and the nearer neighbour's step is the shortest stretch of flight around
+    the exposure, so a pause or dropped frames on one side do not slow it down. A neighbour taken
+    at the same time (no interval) does not count. When that neighbour is more than
+    ``max_interval_ratio`` x the median interval between consecutive frames of a line away (a
+    frame alone on its line, or between two gaps), the speed is unknown rather than a guess:
+    the straight step across a turn or a pause is not the speed at the exposure.
+    """
+    n = len(frames)
+    speed = np.full(n, np.nan)
+    if frames.time_utc_s is None or n < 2:
+        return speed, 0.0
+    order = capture_order(frames)
+    t = np.asarray(frames.time_utc_s, float)[order]
+    xyz = footprints.camera_xyz_m[order]
+    dt = np.diff(t)
+    dist = np.linalg.norm(np.diff(xyz, axis=0), axis=1)
+    usable = (lines[order][:-1] == lines[order][1:]) & (dt > 0) & np.isfinite(dist)
+    if not usable.any():
+        return speed, 0.0
+    max_interval_s = max_interval_ratio * float(np.median(dt[usable]))
+    usable &= dt <= max_interval_s
+    step_speed = np.where(usable, dist / np.where(usable, dt, 1.0), np.nan)
+    # Each frame's step before and after it (in capture order), infinite time where unusable.
+    dt_before = np.concatenate([[np.inf], np.where(usable, dt, np.inf)])
+    dt_after = np.concatenate([np.where(usable, dt, np.inf), [np.inf]])
+    speed_before = np.concatenate([[np.nan], step_speed])
+    speed_after = np.concatenate([step_speed, [np.nan]])
+    speed[order] = np.where(dt_before <= dt_after, speed_before, speed_after)
+    return speed, max_interval_s
+
+
+def motion_blur(
+    frames: Frames, footprints: Footprints, lines: NDArray[np.int64] | None = None
+) -> MotionBlur | None:
+    """Ground speeds (:func:`ground_speeds_m_s`) and blur in pixels = speed x exposure / GSD.
+
+    None without capture times; without an exposure time (neither EXIF nor the camera's
+    ``shutter_s``) the speeds alone, blur None. ``lines``: the flight lines
+    (:func:`flight_lines`, computed when not given).
     """
     n = len(frames)
     if frames.time_utc_s is None or n < 2:
         return None
+    if lines is None:
+        lines = flight_lines(frames, footprints)
+    speed, max_interval_s = ground_speeds_m_s(frames, footprints, lines)
+    exposure: F64 | None = None
+    source: str | None = None
     if frames.exposure_s is not None:
         exposure = np.asarray(frames.exposure_s, float)
         source = "exif"
     elif frames.camera.shutter_s is not None:
         exposure = np.full(n, frames.camera.shutter_s)
         source = "camera"
-    else:
-        return None
-    order = capture_order(frames)
-    xyz = footprints.camera_xyz_m[order]
-    t = np.asarray(frames.time_utc_s, float)[order]
-    dist = np.linalg.norm(np.diff(xyz, axis=0), axis=1)
-    dt = np.diff(t)
-    step_speed = np.where(dt > 0, dist / np.where(dt > 0, dt, 1.0), np.inf)
-    before = np.concatenate([[np.inf], step_speed])
-    after = np.concatenate([step_speed, [np.inf]])
-    speed_sorted = np.minimum(before, after)
-    speed = np.empty(n)
-    speed[order] = speed_sorted
-    speed = np.where(np.isfinite(speed), speed, np.nan)
-    blur = speed * exposure / (footprints.gsd_cm / 100.0)
-    return MotionBlur(speed_m_s=speed, exposure_s=exposure, blur_px=blur, exposure_source=source)
+    blur = None if exposure is None else speed * exposure / (footprints.gsd_cm / 100.0)
+    return MotionBlur(
+        speed_m_s=speed,
+        exposure_s=exposure,
+        blur_px=blur,
+        exposure_source=source,
+        max_interval_s=max_interval_s,
+    )
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -509,10 +564,13 @@ class BlockGeometry:
 
         blur = None
         if self.blur is not None:
+            speed = self.blur.speed_m_s
+            px = self.blur.blur_px
             blur = {
                 "exposure_source": self.blur.exposure_source,
-                "blur_px": dist(Distribution.of(self.blur.blur_px[np.isfinite(self.blur.blur_px)])),
-                "speed_m_s": dist(Distribution.of(self.blur.speed_m_s[np.isfinite(self.blur.speed_m_s)])),
+                "blur_px": dist(Distribution.of(px[np.isfinite(px)])) if px is not None else None,
+                "speed_m_s": dist(Distribution.of(speed[np.isfinite(speed)])),
+                "speed_unknown_frames": int((~np.isfinite(speed)).sum()),
             }
         return {
             "pairs": len(self.pairs),
@@ -567,7 +625,7 @@ def analyse_block(
         doming_risk=not bool(convergent.any()),
         scale_outliers=scale_outliers(footprints, pairs, scale_tolerance),
         gsd_cm=Distribution.of(footprints.gsd_cm[valid]),
-        blur=motion_blur(frames, footprints),
+        blur=motion_blur(frames, footprints, lines),
         good_pair_area_pct=good_share,
     )
     if result.doming_risk:

@@ -79,7 +79,7 @@ def test_real_images_with_a_ground_elevation(tmp_path: Path) -> None:
     result = CliRunner().invoke(
         cli, ["check", str(GARFIELD), "--ground-elevation-m", "258", "-o", str(out), "--refly"]
     )
-    # The frames cover their block, but 7 of 28 are blurred beyond half a pixel: exit 1.
+    # The frames cover their block, but 11 of 28 are blurred beyond half a pixel: exit 1.
     assert result.exit_code == 1, result.output
     assert "motion blur" in result.output and "parrot-sequoia-rgb" in result.output
     assert "re-fly mission: none needed (no gap)" in result.output

@@ -34,7 +34,6 @@ from processing.check import (
     Gap,
     Thresholds,
     default_cell_m,
-    judge,
     run_check,
 )
 from processing.errors import ProcessingError
@@ -42,6 +41,7 @@ from processing.frames import AltitudeReference, Frames
 from processing.inputs import frames_from_plan, frames_from_track, ground_from_options, read_image_frames
 from processing.refly import refly_mission, refly_parameters
 from processing.report import REPORT_FILES, write_report
+from processing.verdict import judge
 
 GARFIELD = SHARED_DATA / "garfield_rgb"
 MISSIONS = Path(__file__).resolve().parents[2] / "missions"
@@ -244,6 +244,37 @@ def test_garfield_images(garfield_result: CheckResult) -> None:
         assert r.blur_px[k] > r.thresholds.max_blur_px
 
 
+def test_garfield_speeds_come_from_consecutive_captures(garfield_result: CheckResult) -> None:
+    """The Sequoia numbers every capture (IMG_..._0012_RGB.JPG): a measured speed is the step to
+    the next or previous capture, never across the frames the subset dropped, a turn or a pause
+    (the slower-neighbour rule gave 0.2 m/s here). The aircraft cruised at 10-15 m/s."""
+    r = garfield_result
+    assert r.speed_m_s is not None and r.blur_px is not None
+    number = np.array([int(name.split("_")[3]) for name in r.frames.name])
+    t = r.frames.time_utc_s
+    assert t is not None
+    known = np.flatnonzero(np.isfinite(r.speed_m_s))
+    assert known.size >= 10
+    geod = pyproj.Geod(ellps="WGS84")
+    for k in known:
+        assert 10.0 < r.speed_m_s[k] < 15.0
+        steps = []
+        for other in np.flatnonzero(np.abs(number - number[k]) == 1):
+            _, _, horizontal_m = geod.inv(
+                r.frames.lon_deg[k], r.frames.lat_deg[k], r.frames.lon_deg[other], r.frames.lat_deg[other]
+            )
+            dist_m = math.hypot(horizontal_m, r.frames.alt_m[k] - r.frames.alt_m[other])
+            steps.append(dist_m / abs(t[k] - t[other]))
+        assert steps and min(abs(v - r.speed_m_s[k]) for v in steps) < 0.01 * r.speed_m_s[k]
+    # Unknown speeds leave blur unknown, and the report says how many.
+    assert np.isnan(r.blur_px[np.isnan(r.speed_m_s)]).all()
+    unknown = int(np.isnan(r.speed_m_s).sum())
+    assert any(f"ground speed unknown for {unknown} of 28 frames" in note for note in r.notes)
+    figures = dict(r.key_figures())
+    assert f"unknown for {unknown} frames" in figures["ground speed"]
+    assert any(f"blur unknown for {unknown} frames" in reason for reason in r.reasons)
+
+
 def test_garfield_gap_where_the_subset_has_no_frames(garfield: Any, garfield_result: CheckResult) -> None:
     """Drop the frames north of the block's middle and judge the whole block: the gap is in the
     north, outside every remaining footprint, inside the dropped ones. (The frames are 90-120 m
@@ -348,6 +379,10 @@ def test_judge_each_threshold() -> None:
     assert "base-height" in judge(**{**base, "good_pair_pct": 80.0})[0]
     assert judge(**{**base, "blurred_count": 5}) == ()  # 5 % allowed
     assert "motion blur" in judge(**{**base, "blurred_count": 6})[0]
+    # Frames without a speed count as sharp, and the reason says how many there were.
+    assert "unknown" not in judge(**{**base, "blurred_count": 6})[0]
+    assert "blur unknown for 3 frames" in judge(**{**base, "blurred_count": 6, "blur_unknown_count": 3})[0]
+    assert judge(**{**base, "blur_unknown_count": 90}) == ()
 
 
 def test_overlap_against_the_plan(gully_result: CheckResult) -> None:
@@ -420,6 +455,13 @@ def test_plan_check_and_flown_check_agree_on_a_simulated_flight(
     assert r.side_overlap_pct.median == pytest.approx(planned.side_overlap_pct.median, abs=1.0)
     assert r.good_pair_pct == pytest.approx(planned.good_pair_pct, abs=1.0)
     # No exposure time is known for this camera (the plan's database entry has none): the
-    # check says so rather than guessing a blur.
+    # check says so rather than guessing a blur, but measures the speeds, which are the plan's.
     assert plan.camera.shutter_s is None and r.blur_px is None
-    assert r.speed_m_s is None
+    assert r.speed_m_s is not None and np.isfinite(r.speed_m_s).all()
+    np.testing.assert_allclose(r.speed_m_s, plan.summary.speed_m_s, rtol=0.05)
+    figures = dict(r.key_figures())
+    assert "no exposure time" in figures["motion blur"]
+    assert figures["ground speed"].startswith(f"median {plan.summary.speed_m_s:.1f} m/s")
+    assert planned.speed_m_s is None and dict(planned.key_figures())["ground speed"].startswith(
+        "not measured"
+    )
