@@ -28,6 +28,18 @@ camera and other non-autopilot heartbeats are ignored) and identifies the autopi
 vehicle type and the target system and component. Sends from the thread and from the caller are
 serialised by one lock, which also covers parsing (the signing timestamp is shared state).
 
+Observing the whole traffic: :meth:`Link.recv` hands back only what concerns this ground
+station and its vehicle. A program that must see everything (a telemetry log, as MAVProxy and
+QGroundControl write one; link quality from the sequence numbers of every sender) passes
+``on_message`` to :meth:`Link.open`: it is called with ``(message, rx_time_utc_s)`` for every
+valid message the link parses, before any filtering, from every system and component and
+whoever it is addressed to, including those read while :meth:`Link.open` waits for the
+vehicle's heartbeat. It runs in the thread that reads (the caller of :meth:`Link.open` and
+:meth:`Link.recv`), in arrival order; what it raises propagates to that caller. Bytes that do
+not parse (BAD_DATA, including messages refused by signing) are not handed to it. The link
+reads only inside :meth:`Link.open` and :meth:`Link.recv`: a program that only observes keeps
+calling ``recv`` and may ignore what it returns (the observer has seen it already).
+
 Signing (MAVLink 2): with a 32-byte key every message we send is signed; with
 ``require_signing`` every unsigned or wrongly signed incoming message is refused, except
 RADIO_STATUS, which SiK telemetry radios inject unsigned (as the MAVLink signing guide allows).
@@ -45,7 +57,7 @@ import re
 import socket
 import threading
 import time
-from collections.abc import Collection
+from collections.abc import Callable, Collection
 from dataclasses import dataclass
 from pathlib import Path
 from types import TracebackType
@@ -80,6 +92,10 @@ _MAV_AUTOPILOT = {
 _MULTIROTOR_TYPES = frozenset({2, 3, 4, 13, 14, 15, 29, 35})
 _VTOL_TYPES = frozenset({19, 20, 21, 22, 23, 24, 25})
 _RADIO_STATUS_ID = mavlink2.MAVLINK_MSG_ID_RADIO_STATUS
+
+#: ``on_message(message, rx_time_utc_s)``: sees every valid message the link parses (module
+#: docstring). ``rx_time_utc_s``: when it was read, POSIX seconds, UTC, this computer's clock.
+MessageObserver = Callable[[Any, float], None]
 
 
 def vehicle_type_from_mav_type(mav_type: int) -> VehicleType | None:
@@ -227,8 +243,10 @@ class Link:
         source_component: int,
         signing_key: bytes | None,
         require_signing: bool,
+        on_message: MessageObserver | None = None,
     ) -> None:
         self.url = url.text
+        self._on_message = on_message
         self._parsed = url
         self._conn = conn
         self.source_system = source_system
@@ -273,11 +291,15 @@ class Link:
         require_signing: bool = False,
         source_system: int = 255,
         source_component: int = 190,
+        on_message: MessageObserver | None = None,
     ) -> Link:
         """Open ``url``, start our heartbeat, and wait for the vehicle's heartbeat.
 
         ``heartbeat_timeout_s``: how long to wait for an autopilot heartbeat (s).
         ``source_system``/``source_component``: our MAVLink ids (255/190 = a ground station).
+        ``on_message(message, rx_time_utc_s)``: called for every valid message parsed, before
+        the filtering of :meth:`recv`, from the first one read while waiting for the
+        heartbeat (see the module docstring).
         Raises :class:`LinkError` with what to check when the port cannot be opened or no
         autopilot is heard. ``require_signing`` needs a ``signing_key``.
         """
@@ -301,6 +323,7 @@ class Link:
                 source_component=source_component,
                 signing_key=signing_key,
                 require_signing=require_signing,
+                on_message=on_message,
             )
             link._start_heartbeat()
             link._wait_for_vehicle(heartbeat_timeout_s)
@@ -369,8 +392,9 @@ class Link:
 
         Waits up to ``timeout_s`` seconds; returns None when nothing matching came. Messages
         from other systems, addressed to another ground station, or (unless
-        ``all_components``) from another component of the vehicle are skipped. Raises
-        :class:`LinkError` when the link dropped.
+        ``all_components``) from another component of the vehicle are skipped (the
+        ``on_message`` observer of :meth:`open` still sees them). Raises :class:`LinkError`
+        when the link dropped.
         """
         deadline = time.monotonic() + timeout_s
         while True:
@@ -406,8 +430,15 @@ class Link:
             except OSError as error:  # includes serial.SerialException
                 self._dropped = str(error) or type(error).__name__
                 raise self._drop_error(self._dropped) from error
-        if message is None and self._dropped is not None:
-            raise self._drop_error(self._dropped)
+        if message is None:
+            if self._dropped is not None:
+                raise self._drop_error(self._dropped)
+            return None
+        # outside the lock: the observer may be slow (a disk write) and must not hold up our
+        # heartbeat; a failure of its own is not a link drop and reaches the caller as it is
+        if self._on_message is not None and message.get_type() != "BAD_DATA":
+            # mavutil stamps every message it parses with time.time() (its receive time)
+            self._on_message(message, float(getattr(message, "_timestamp", 0.0) or time.time()))
         return message
 
     def _wanted(self, message: Any, types: Collection[str] | None, all_components: bool) -> bool:

@@ -18,7 +18,12 @@ Two layers:
 
 - :func:`monitor` runs the loop on an :class:`acquisition.link.Link`, reconnects after a
   drop and stops on landing, on a stop event or on Ctrl-C; it writes ``monitor.json`` (the
-  final state) when it ends.
+  final state) when it ends. It records through the link's ``on_message`` observer, not
+  what :meth:`Link.recv` returns, so the tlog holds the whole traffic as a ground station
+  logs it: every system and component (a second vehicle, a companion computer, another
+  ground station), messages addressed to another ground station, and those read while the
+  link waits for the vehicle's heartbeat, at the first connection and at every reconnection.
+  The vehicle the recorder follows is the one the link identified.
 
 Camera events
     CAMERA_FEEDBACK (ArduPilot; ``img_idx`` is the sequence number since
@@ -69,8 +74,10 @@ Link quality
     counts ``mav_loss``): a jump of ``k`` (modulo 256, ``1 <= k < 128``) means ``k - 1``
     messages lost; ``k == 0`` a duplicate; ``k >= 128`` a message arriving late
     (reordered), which recovers one counted as lost. Quality is received / (received + lost),
-    in percent. The count restarts after a reconnection (what was sent while the link was
-    down cannot be told from sequence numbers modulo 256); drops are counted separately.
+    in percent. Every message received counts, from every system, whoever it is addressed
+    to (a message left out would show as a gap: a false loss). The count restarts with
+    the first message of each connection attempt after a drop (what was sent while the link
+    was down cannot be told from sequence numbers modulo 256); drops are counted separately.
 """
 
 from __future__ import annotations
@@ -571,6 +578,7 @@ class FlightRecorder:
         self._pending_triggers: dict[int, tuple[float, Any]] = {}  # seq -> (wall s, msg)
         self._positional_camera = False
         self._seq: dict[tuple[int, int], _SeqCounter] = {}
+        self._restart_seq = False  # the next message starts new sequence counts (a new connection)
         self.vehicle: tuple[int, int] | None = None
         self._boot_offset_s: float | None = None  # vehicle UTC minus boot time, s
         self._last_boot_ms: float | None = None
@@ -634,6 +642,9 @@ class FlightRecorder:
             rx_time_utc_s = float(getattr(msg, "_timestamp", 0.0) or time.time())
         self._write_tlog(msg, rx_time_utc_s)
         self.messages += 1
+        if self._restart_seq:
+            self._seq.clear()
+            self._restart_seq = False
         src = (int(msg.get_srcSystem()), int(msg.get_srcComponent()))
         self._seq.setdefault(src, _SeqCounter()).add(int(msg.get_seq()))
         if kind == "HEARTBEAT":
@@ -849,21 +860,40 @@ class FlightRecorder:
 
     # --- link events -------------------------------------------------------------------------
 
+    def set_vehicle(self, system_id: int, component_id: int) -> None:
+        """Follow this autopilot (the one the link identified) rather than the first autopilot
+        heartbeat recorded; messages of other systems are then logged only."""
+        vehicle = (int(system_id), int(component_id))
+        if self.vehicle is not None and self.vehicle != vehicle:
+            log.warning(
+                "now recording vehicle system %d component %d (was system %d component %d)",
+                *vehicle,
+                *self.vehicle,
+            )
+        self.vehicle = vehicle
+
     def note_drop(self, detail: str) -> None:
-        """The link was lost (files stay open; the recording goes on after a reconnect)."""
+        """The link was lost (files stay open; the recording goes on after a reconnect).
+        Sequence counts restart with the next message recorded."""
         if self.connected:
             self.drops += 1
         self.connected = False
         self.last_drop = detail
+        self._restart_seq = True
         if self._tlog is not None:
             self._tlog.flush()
             os.fsync(self._tlog.fileno())
 
+    def note_connecting(self) -> None:
+        """A new attempt to open the link starts: sequence counts restart with its first
+        message, so that a gap between two attempts is not counted as losses."""
+        self._restart_seq = True
+
     def note_reconnect(self) -> None:
-        """The link is back; sequence counting restarts (see the module docstring)."""
+        """The link is back. Its sequence counts started with its first message (recorded
+        while the link waited for the heartbeat), see the module docstring."""
         self.connected = True
         self.reconnects += 1
-        self._seq.clear()
 
     # --- state -------------------------------------------------------------------------------
 
@@ -980,17 +1010,35 @@ def monitor(
     if plan is not None:
         log.info("plan %s: %d stations", plan.name, len(plan))
 
+    recording: list[FlightRecorder] = []  # the recorder, once it exists
+    # what the first connection reads before the recorder exists (no file is written until
+    # the vehicle answers): recorded as soon as it does
+    early: list[tuple[Any, float]] = []
+
+    def observe(msg: Any, rx_time_utc_s: float) -> None:
+        if recording:
+            recording[0].record(msg, rx_time_utc_s)
+        else:
+            early.append((msg, rx_time_utc_s))
+
     def open_link(timeout_s: float) -> Link:
         return Link.open(
             url,
             heartbeat_timeout_s=timeout_s,
             signing_key=signing_key,
             require_signing=require_signing,
+            on_message=observe,
         )
 
-    link: Link | None = open_link(heartbeat_timeout_s)
+    first = open_link(heartbeat_timeout_s)
+    link: Link | None = first
     stop = stop_event if stop_event is not None else threading.Event()
-    recorder = FlightRecorder(out_dir, plan, overwrite=overwrite)
+    try:
+        recorder = FlightRecorder(out_dir, plan, overwrite=overwrite)
+    except BaseException:
+        first.close()
+        raise
+    recorder.set_vehicle(first.target_system, first.target_component)
     reason = StopReason.STOPPED
     last_update = 0.0
     landed_at: float | None = None
@@ -1004,6 +1052,10 @@ def monitor(
 
     try:
         try:
+            for msg, rx_time_utc_s in early:
+                recorder.record(msg, rx_time_utc_s)
+            early.clear()
+            recording.append(recorder)
             while True:
                 if stop.is_set():
                     reason = StopReason.STOPPED
@@ -1017,10 +1069,10 @@ def monitor(
                         break
                     continue
                 try:
+                    # the observer records every message read; what recv returns is already
+                    # recorded. Drain what is there before looking at the clock again.
                     msg = link.recv(None, timeout_s=0.1, all_components=True)
-                    # drain what is already there before looking at the clock again
                     while msg is not None:
-                        recorder.record(msg, float(getattr(msg, "_timestamp", 0.0)) or time.time())
                         msg = link.recv(None, timeout_s=0.0, all_components=True)
                 except LinkError as error:
                     detail = str(error)
@@ -1076,6 +1128,7 @@ def _reconnect(
         if remaining <= 0:
             break
         attempts += 1
+        recorder.note_connecting()
         try:
             link = open_link(max(min(heartbeat_timeout_s, remaining), 0.5))
         except LinkError as error:
@@ -1083,6 +1136,7 @@ def _reconnect(
             update(True)
             stop.wait(min(0.5, max(remaining, 0.0)))
             continue
+        recorder.set_vehicle(link.target_system, link.target_component)
         recorder.note_reconnect()
         log.warning(
             "reconnected after %.1f s (%d attempts); recording goes on in %s",

@@ -151,9 +151,10 @@ def command(
     require_signing: bool,
     as_json: bool,
 ) -> None:
-    """Record every camera event and the telemetry of a flight to a .tlog and a trigger CSV,
-    showing live on stderr: photos taken / planned stations, stations missed so far, mission
-    item, link quality (percent of messages received, from MAVLink sequence numbers), age of
+    """Record every camera event and the whole MAVLink traffic of the link (every system, as a
+    ground station logs it) to a .tlog and a trigger CSV, showing live on stderr: photos
+    taken / planned stations, stations missed so far, mission item, link quality (percent of
+    messages received, from the MAVLink sequence numbers of every system on the link), age of
     the last heartbeat, reconnections. A dropped link is reconnected and the recording goes
     on. Ends when the vehicle lands and disarms, or on Ctrl-C, with the files complete.
 

@@ -13,6 +13,7 @@ import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import Any
 
 import pytest
 from pymavlink import mavutil
@@ -351,3 +352,107 @@ def test_signing_key_file_errors(tmp_path: Path) -> None:
         load_signing_key(tmp_path / "empty.key")
     with pytest.raises(LinkError, match="32 bytes"):
         Link.open("tcp://127.0.0.1:1", signing_key=b"short")
+
+
+# --- the on_message observer --------------------------------------------------------------------
+
+
+class Sender:
+    """Packs messages as one MAVLink sender (system, component) does, numbering them in turn."""
+
+    def __init__(self, system: int, component: int, seq: int = 0) -> None:
+        self.mav = mavlink2.MAVLink(None, srcSystem=system, srcComponent=component)
+        self.mav.seq = seq
+
+    def __call__(self, msg: Any) -> bytes:
+        data = bytes(msg.pack(self.mav))
+        self.mav.seq = (self.mav.seq + 1) % 256
+        return data
+
+
+@contextmanager
+def scripted_vehicle(packets: list[bytes]) -> Iterator[str]:
+    """A TCP peer that sends ``packets`` in one burst to the first client, then stays open."""
+    server = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    server.bind(("127.0.0.1", 0))
+    server.listen(1)
+    stop = threading.Event()
+
+    def serve() -> None:
+        server.settimeout(5.0)
+        try:
+            peer, _ = server.accept()
+        except OSError:
+            return
+        with peer:
+            peer.sendall(b"".join(packets))
+            stop.wait(10.0)
+
+    thread = threading.Thread(target=serve, daemon=True)
+    thread.start()
+    try:
+        yield f"tcp://127.0.0.1:{server.getsockname()[1]}"
+    finally:
+        stop.set()
+        thread.join()
+        server.close()
+
+
+def traffic_with_a_second_system() -> tuple[list[bytes], int]:
+    """Packets of a vehicle (1/1), its camera (1/100), a second vehicle (2/1) and a gimbal
+    (2/154), some addressed to another ground station (254); and how many come before and
+    including the vehicle's heartbeat."""
+    vehicle, camera, other, gimbal = Sender(1, 1, 17), Sender(1, 100), Sender(2, 1, 200), Sender(2, 154)
+    ack_to_other_gcs = mavlink2.MAVLink_command_ack_message(400, 0, 0, 0, 254, 190)
+    packets = [
+        other(mavlink2.MAVLink_system_time_message(1_763_800_000_000_000, 1000)),
+        # a generic-autopilot heartbeat of another system: not the vehicle
+        gimbal(mavlink2.MAVLink_heartbeat_message(26, 0, 0, 0, 4, 3)),
+        vehicle(mavlink2.MAVLink_system_time_message(1_763_800_000_500_000, 2000)),
+        vehicle(mavlink2.MAVLink_heartbeat_message(2, 3, 1, 3, 4, 3)),
+        vehicle(ack_to_other_gcs),
+        other(mavlink2.MAVLink_heartbeat_message(2, 3, 1, 3, 4, 3)),
+        camera(mavlink2.MAVLink_heartbeat_message(30, 8, 0, 0, 4, 3)),
+        vehicle(mavlink2.MAVLink_statustext_message(6, b"for us")),
+    ]
+    return packets, 4
+
+
+def test_on_message_sees_every_message_before_filtering_from_the_heartbeat_wait_on() -> None:
+    packets, until_heartbeat = traffic_with_a_second_system()
+    seen: list[tuple[Any, float]] = []
+    before = time.time()
+    with scripted_vehicle(packets) as url:
+        with Link.open(url, heartbeat_timeout_s=5.0, on_message=lambda m, t: seen.append((m, t))) as link:
+            assert (link.target_system, link.target_component) == (1, 1)
+            # what the heartbeat wait read, up to and including the vehicle's heartbeat
+            assert [m.get_msgbuf() for m, _ in seen] == packets[:until_heartbeat]
+            # recv still hands back only what is for us, from the vehicle
+            mine = link.recv(None, timeout_s=2.0, all_components=False)
+            assert mine is not None and mine.get_type() == "STATUSTEXT" and mine.text == "for us"
+            assert link.recv(None, timeout_s=0.3, all_components=True) is None
+        after = time.time()
+    assert [bytes(m.get_msgbuf()) for m, _ in seen] == packets  # every one, in arrival order
+    senders = {(m.get_srcSystem(), m.get_srcComponent()) for m, _ in seen}
+    assert senders == {(1, 1), (1, 100), (2, 1), (2, 154)}
+    times = [t for _, t in seen]
+    assert all(before <= t <= after for t in times) and times == sorted(times)
+
+
+def test_what_the_observer_raises_reaches_the_caller_of_open() -> None:
+    packets, _ = traffic_with_a_second_system()
+
+    def refuse(message: Any, rx_time_utc_s: float) -> None:
+        raise OSError(28, "No space left on device")
+
+    with scripted_vehicle(packets) as url, pytest.raises(OSError, match="No space left"):
+        Link.open(url, heartbeat_timeout_s=5.0, on_message=refuse)
+
+
+def test_without_observer_recv_filters_as_before() -> None:
+    packets, _ = traffic_with_a_second_system()
+    with scripted_vehicle(packets) as url, Link.open(url, heartbeat_timeout_s=5.0) as link:
+        got = []
+        while (message := link.recv(None, timeout_s=0.5, all_components=True)) is not None:
+            got.append((message.get_srcSystem(), message.get_srcComponent(), message.get_type()))
+    assert got == [(1, 100, "HEARTBEAT"), (1, 1, "STATUSTEXT")]

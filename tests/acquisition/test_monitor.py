@@ -741,3 +741,156 @@ def test_px4_flight_counts_each_photo_once_from_trigger_and_capture(tmp_path: Pa
     lon = np.array([float(r["lon_deg"]) for r in rows])
     _, _, dist = GEOD.inv(lon, lat, plan.stations.lon_deg, plan.stations.lat_deg)
     assert np.max(dist) < plan.summary.trigger_distance_m
+
+
+# --- the whole traffic: other systems, other ground stations, heartbeat waits -------------------
+
+
+class Sender:
+    """Packs messages as one MAVLink sender (system, component) does, numbering them in turn."""
+
+    def __init__(self, system: int, component: int, seq: int = 0) -> None:
+        self.mav = mavlink2.MAVLink(None, srcSystem=system, srcComponent=component)
+        self.mav.seq = seq
+
+    def __call__(self, msg: Any) -> bytes:
+        data = bytes(msg.pack(self.mav))
+        self.mav.seq = (self.mav.seq + 1) % 256
+        return data
+
+    def skip(self, n: int) -> None:
+        """``n`` messages sent while nobody listened."""
+        self.mav.seq = (self.mav.seq + n) % 256
+
+
+class ScriptedVehicle:
+    """A TCP peer on the vehicle side: client k gets the packets of ``scripts[k]`` in one burst;
+    every client but the last is then disconnected (a drop), the last stays connected."""
+
+    def __init__(self, scripts: list[list[bytes]]) -> None:
+        self.scripts = scripts
+        self.server = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+        self.server.bind(("127.0.0.1", 0))
+        self.server.listen(2)
+        self.server.settimeout(0.1)
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._serve, daemon=True)
+
+    @property
+    def url(self) -> str:
+        return f"tcp://127.0.0.1:{self.server.getsockname()[1]}"
+
+    def __enter__(self) -> ScriptedVehicle:
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._stop.set()
+        self._thread.join(timeout=5)
+        self.server.close()
+
+    def _serve(self) -> None:
+        last: socket.socket | None = None
+        for k, packets in enumerate(self.scripts):
+            peer = None
+            while peer is None and not self._stop.is_set():
+                with contextlib.suppress(TimeoutError):
+                    peer, _ = self.server.accept()
+            if peer is None:
+                return
+            peer.sendall(b"".join(packets))
+            if k < len(self.scripts) - 1:
+                peer.shutdown(socket.SHUT_RDWR)
+                peer.close()
+            else:
+                last = peer
+        self._stop.wait(30)
+        if last is not None:
+            last.close()
+
+
+def test_tlog_holds_every_system_and_the_heartbeat_waits_and_no_false_loss_is_counted(tmp_path: Path) -> None:
+    vehicle, other, gimbal = Sender(1, 1, 40), Sender(2, 1, 250), Sender(2, 154)
+    ack_to_other_gcs = mavlink2.MAVLink_command_ack_message(400, 0, 0, 0, 254, 190)
+    gimbal_heartbeat = mavlink2.MAVLink_heartbeat_message(26, 0, 0, 0, 4, 3)  # generic autopilot
+    first = [
+        # read while the link waits for the vehicle's heartbeat
+        other(system_time(0.5)),
+        gimbal(gimbal_heartbeat),
+        vehicle(system_time(1.0)),
+        vehicle(heartbeat(True)),
+        # the vehicle's answers to another ground station, and a second vehicle
+        vehicle(ack_to_other_gcs),
+        vehicle(mavlink2.MAVLink_mission_current_message(3)),
+        other(mavlink2.MAVLink_mission_current_message(9)),
+        other(heartbeat(False)),
+        vehicle(ack_to_other_gcs),
+        vehicle(system_time(2.0)),
+    ]
+    vehicle.skip(30)  # sent while the link was down: not losses
+    other.skip(7)
+    second = [
+        # read while the reconnection waits for the vehicle's heartbeat
+        vehicle(mavlink2.MAVLink_statustext_message(6, b"early")),
+        vehicle(ack_to_other_gcs),
+        other(system_time(3.0)),
+        vehicle(heartbeat(True)),
+        other(heartbeat(False)),
+        vehicle(ack_to_other_gcs),
+        vehicle(mavlink2.MAVLink_mission_current_message(4)),
+        other(mavlink2.MAVLink_mission_current_message(10)),
+        vehicle(system_time(4.0)),
+    ]
+    total = len(first) + len(second)
+    states: list[MonitorState] = []
+    done = threading.Event()
+    stop = threading.Event()
+    box: dict[str, Any] = {}
+
+    def on_update(state: MonitorState) -> None:
+        states.append(state)
+        if state.reconnects == 1 and state.messages == total:
+            done.set()
+
+    def body() -> None:
+        try:
+            box["result"] = monitor(
+                peer.url, None, tmp_path / "flight", on_update=on_update, stop_event=stop,
+                update_interval_s=0.02, reconnect_timeout_s=10.0, heartbeat_timeout_s=5.0,
+            )  # fmt: skip
+        except BaseException as error:  # handed to the test
+            box["error"] = error
+
+    started = time.time()
+    with ScriptedVehicle([first, second]) as peer:
+        thread = threading.Thread(target=body, daemon=True)
+        thread.start()
+        reached = done.wait(15)
+        stop.set()
+        thread.join(timeout=10)
+    ended = time.time()
+    assert "error" not in box, box.get("error")
+    assert reached, states[-1] if states else "no update"
+    result: MonitorResult = box["result"]
+    state = result.state
+    # the tlog: every packet of both connections, byte for byte, in order, each stamped
+    data = result.tlog_path.read_bytes()
+    at = 0
+    stamps = []
+    for packet in first + second:
+        stamps.append(struct.unpack(">Q", data[at : at + 8])[0] / 1e6)
+        assert data[at + 8 : at + 8 + len(packet)] == packet
+        at += 8 + len(packet)
+    assert at == len(data)
+    assert all(started <= t <= ended for t in stamps) and stamps == sorted(stamps)
+    assert state.messages == total and state.drops == 1 and state.reconnects == 1
+    # sequence counts of the second connection: from its first message, every system, no loss
+    by_system = {q.system_id: q for q in state.link}
+    assert (by_system[1].received, by_system[1].lost) == (sum(p[5] == 1 for p in second), 0)
+    assert (by_system[2].received, by_system[2].lost) == (sum(p[5] == 2 for p in second), 0)
+    assert state.link_quality_pct == 100.0
+    # the recorder follows the vehicle the link identified, not the other system
+    assert state.mission_seq == 4 and state.armed and state.heartbeat_age_s is not None
+    # the tlog reader sees the vehicle and names the other sources
+    flight = read_tlog(result.tlog_path)
+    assert any("2/1" in w and "2/154" in w for w in flight.warnings)

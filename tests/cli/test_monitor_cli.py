@@ -1,5 +1,6 @@
 """`sfap monitor` through the real click group, against the simulated vehicle: a planned
-flight recorded whole, a link cut and restored mid-flight, Ctrl-C, and bad input."""
+flight recorded whole, a link cut and restored mid-flight, Ctrl-C, bad input, and
+a second system on the link (a scripted pymavlink peer)."""
 
 from __future__ import annotations
 
@@ -14,10 +15,12 @@ import socket
 import threading
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
 from click.testing import CliRunner, Result
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 from pyproj import Geod
 
 from acquisition.simulator.server import SimulatedVehicle
@@ -304,3 +307,81 @@ def test_a_link_that_does_not_come_back_is_exit_1_with_the_recording_kept(
     assert flight.positions is not None and len(flight.positions) > 0
     saved = json.loads((out / "monitor.json").read_text())
     assert saved["drops"] == 1 and saved["reconnects"] == 0 and not saved["connected"]
+
+
+# --- the whole traffic of the link --------------------------------------------------------------
+
+
+def _packer(system: int, component: int, seq: int = 0) -> Any:
+    """Packs messages as one MAVLink sender does, numbering them in turn."""
+    mav = mavlink2.MAVLink(None, srcSystem=system, srcComponent=component)
+    mav.seq = seq
+
+    def pack(msg: Any) -> bytes:
+        data = bytes(msg.pack(mav))
+        mav.seq = (mav.seq + 1) % 256
+        return data
+
+    return pack
+
+
+def test_monitor_logs_a_second_system_and_counts_no_false_loss(tmp_path: Path) -> None:
+    vehicle, other = _packer(1, 1, 100), _packer(2, 1, 7)
+    boot_ms = [0]
+
+    def vehicle_heartbeat(armed: bool) -> Any:
+        return mavlink2.MAVLink_heartbeat_message(2, 3, 1 | (128 if armed else 0), 3, 4, 3)
+
+    def position(alt_rel_home_m: float) -> Any:
+        boot_ms[0] += 200
+        return mavlink2.MAVLink_global_position_int_message(
+            boot_ms[0], 422012000, -14866000, 400_000, round(alt_rel_home_m * 1000), 0, 0, 0, 0
+        )
+
+    ack_to_other_gcs = mavlink2.MAVLink_command_ack_message(400, 0, 0, 0, 254, 190)
+    packets = [other(mavlink2.MAVLink_heartbeat_message(6, 8, 0, 0, 4, 3))]  # another GCS, first
+    packets.append(vehicle(vehicle_heartbeat(False)))
+    packets.append(vehicle(ack_to_other_gcs))  # the vehicle answers the other ground station
+    packets.append(vehicle(vehicle_heartbeat(True)))
+    for alt in (1.0, 5.0, 10.0, 5.0, 0.5):
+        packets.append(vehicle(position(alt)))
+        packets.append(other(mavlink2.MAVLink_system_time_message(0, boot_ms[0])))
+        packets.append(vehicle(ack_to_other_gcs))
+    packets.append(vehicle(vehicle_heartbeat(False)))  # landed: the monitor ends
+
+    server = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    server.bind(("127.0.0.1", 0))
+    server.listen(1)
+    server.settimeout(15)
+    done = threading.Event()
+
+    def serve() -> None:
+        with contextlib.suppress(OSError):
+            peer, _ = server.accept()
+            with peer:
+                peer.sendall(b"".join(packets))
+                done.wait(20)
+
+    thread = threading.Thread(target=serve, daemon=True)
+    thread.start()
+    out = tmp_path / "flight"
+    try:
+        result = _run("--connect", f"tcp://127.0.0.1:{server.getsockname()[1]}", "-o", str(out), "--json")
+    finally:
+        done.set()
+        thread.join(timeout=5)
+        server.close()
+    assert result.exit_code == 0, result.output
+    report = json.loads(result.stdout)
+    assert report["reason"] == "landed"
+    assert report["messages"] == len(packets)
+    by_system = {q["system_id"]: q for q in report["link"]}
+    assert by_system[1]["received"] == sum(p[5] == 1 for p in packets) and by_system[1]["lost"] == 0
+    assert by_system[2]["received"] == sum(p[5] == 2 for p in packets) and by_system[2]["lost"] == 0
+    assert report["link_quality_pct"] == 100.0
+    data = (out / "flight.tlog").read_bytes()
+    at = 0
+    for packet in packets:  # every packet, in order, after its 8-byte time stamp
+        assert data[at + 8 : at + 8 + len(packet)] == packet
+        at += 8 + len(packet)
+    assert at == len(data)
