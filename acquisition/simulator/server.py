@@ -44,36 +44,84 @@ line. What it does, and which real behaviour each part copies:
 
 Timers of the protocol (re-requests, cancellation, latency) run on the wall clock; the flight,
 the boot delay and the GPS fix run on simulated time (``speedup`` x the wall clock).
+
+A message is answered in the loop iteration that receives it, and what the link holds back
+(latency, baud rate) leaves when it falls due, not at the next step of the flight.
+
+The parts live in modules of their own: :mod:`.faults` (fault injection), :mod:`.storage` (how
+each autopilot stores items), :mod:`.transport` (URLs and sockets), :mod:`.flight` (the flight
+and its telemetry); this module is the vehicle and its protocol, and re-exports the names
+other code imports from here.
 """
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import logging
 import math
 import random
-import select
-import socket
 import struct
 import threading
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from enum import StrEnum
 from pathlib import Path
 from typing import IO, Any
-from urllib.parse import urlsplit
 
-import numpy as np
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from planner.errors import InputError, MissionValidationError
-from planner.mission import Autopilot, HomePosition, MavCmd, MissionItem, VehicleType
+from planner.mission import Autopilot, HomePosition, MissionItem, VehicleType
 
 from ..errors import LinkError
-from ..mavlink_items import from_mission_item, to_mission_item_int
+from ..mavlink_items import to_mission_item_int
+from .faults import FaultConfig, FaultStats, FaultyPipe, Refusal
 from .flight import FlightConfig, FlightSimulator
+from .storage import (
+    MAV_MISSION_ACCEPTED,
+    MAV_MISSION_DENIED,
+    MAV_MISSION_ERROR,
+    MAV_MISSION_INVALID,
+    MAV_MISSION_INVALID_SEQUENCE,
+    MAV_MISSION_NO_SPACE,
+    MAV_MISSION_OPERATION_CANCELLED,
+    MAV_MISSION_UNSUPPORTED,
+    MISSION_TYPE_FENCE,
+    MISSION_TYPE_MISSION,
+    MISSION_TYPE_RALLY,
+    MISSION_TYPES,
+    NO_HOME,
+    WireItem,
+    ardupilot_store,
+    home_wire_item,
+    item_float_message,
+    item_int_message,
+    px4_store,
+    store_item,
+    wire_item_from_message,
+    wire_item_to_mission_item,
+)
+from .transport import ListenAddress, Transport, parse_listen_url
+
+__all__ = [
+    "DEFAULT_HOME",
+    "MISSION_TYPE_FENCE",
+    "MISSION_TYPE_MISSION",
+    "MISSION_TYPE_RALLY",
+    "SIMULATOR_BANNER",
+    "FaultConfig",
+    "FaultStats",
+    "ListenAddress",
+    "Refusal",
+    "SimulatedVehicle",
+    "WireItem",
+    "ardupilot_store",
+    "parse_listen_url",
+    "px4_store",
+    "serve",
+    "wire_item_from_message",
+    "wire_item_to_mission_item",
+]
 
 log = logging.getLogger(__name__)
 
@@ -84,588 +132,9 @@ DEFAULT_HOME = HomePosition(lat_deg=41.6488, lon_deg=-0.8891, alt_amsl_m=210.0)
 
 M = mavlink2  # the message set (ardupilotmega includes common)
 
-MISSION_TYPE_MISSION = 0
-MISSION_TYPE_FENCE = 1
-MISSION_TYPE_RALLY = 2
-_MISSION_TYPES = (MISSION_TYPE_MISSION, MISSION_TYPE_FENCE, MISSION_TYPE_RALLY)
-
-
-class Refusal(StrEnum):
-    """How a refusing vehicle answers an upload."""
-
-    NO_SPACE = "no_space"  # every MISSION_COUNT > 0 -> MAV_MISSION_NO_SPACE
-    INVALID = "invalid"  # the item at seq count // 2 -> MAV_MISSION_INVALID
-
-
-@dataclass(frozen=True, kw_only=True)
-class FaultConfig:
-    """Faults injected on the link, applied to every message the vehicle sends and receives.
-
-    - ``loss_pct``: chance (0-100) that a message is dropped.
-    - ``duplicate_pct``: chance (0-100) that a message is delivered twice.
-    - ``reorder_pct``: chance (0-100) that a message is held back and delivered after the
-      next one (or after 0.2 s when no next one comes).
-    - ``latency_s``: delay added to every message, seconds (wall clock).
-    - ``refuse``: None, ``"no_space"`` or ``"invalid"`` (see :class:`Refusal`).
-    - ``seed``: seed of the fault RNG (sending and receiving use two streams derived from it).
-    """
-
-    loss_pct: float = 0.0
-    duplicate_pct: float = 0.0
-    reorder_pct: float = 0.0
-    latency_s: float = 0.0
-    refuse: str | None = None
-    seed: int = 0
-
-    def __post_init__(self) -> None:
-        for name in ("loss_pct", "duplicate_pct", "reorder_pct"):
-            value = getattr(self, name)
-            if not (0.0 <= value <= 100.0) or math.isnan(value):
-                raise InputError(f"FaultConfig.{name} is {value}; give a percentage 0-100")
-        if not (0.0 <= self.latency_s <= 60.0):
-            raise InputError(f"FaultConfig.latency_s is {self.latency_s}; give 0-60 s")
-        if self.refuse is not None and self.refuse not in {r.value for r in Refusal}:
-            raise InputError(f"FaultConfig.refuse is {self.refuse!r}; use None, 'no_space' or 'invalid'")
-
-
-@dataclass
-class FaultStats:
-    """What the fault injector did, per direction (for tests and logs)."""
-
-    offered: int = 0
-    dropped: int = 0
-    duplicated: int = 0
-    reordered: int = 0
-    overflowed: int = 0  # dropped because the simulated serial link's buffer was full
-
-
-class _FaultyPipe:
-    """Applies a :class:`FaultConfig` to a stream of items; ``release(now)`` yields them.
-
-    With ``baud``, the items also cross a serial link one after the other: each takes
-    10 bits per byte (8N1) of link time, and what would wait more than ``buffer_s`` for the
-    link is dropped, as a telemetry radio's full buffer drops it.
-    """
-
-    def __init__(
-        self,
-        faults: FaultConfig,
-        rng: random.Random,
-        *,
-        baud: int | None = None,
-        size_of: Callable[[Any], int] = len,
-        buffer_s: float = 1.0,
-    ) -> None:
-        self.faults = faults
-        self.rng = rng
-        self.stats = FaultStats()
-        self.baud = baud
-        self.size_of = size_of
-        self.buffer_s = buffer_s
-        self._busy_until = 0.0
-        self._queue: list[tuple[float, int, Any]] = []
-        self._held: tuple[float, Any] | None = None
-        self._order = 0
-
-    def _schedule(self, when: float, item: Any) -> None:
-        if self.baud:
-            start = max(when, self._busy_until)
-            self._busy_until = start + self.size_of(item) * 10.0 / self.baud
-            when = self._busy_until
-        self._order += 1
-        self._queue.append((when, self._order, item))
-
-    def offer(self, item: Any, now: float) -> None:
-        self.stats.offered += 1
-        f = self.faults
-        if self.baud and self._busy_until - now > self.buffer_s:
-            self.stats.overflowed += 1
-            return
-        if f.loss_pct and self.rng.random() * 100.0 < f.loss_pct:
-            self.stats.dropped += 1
-            return
-        copies = 1
-        if f.duplicate_pct and self.rng.random() * 100.0 < f.duplicate_pct:
-            self.stats.duplicated += 1
-            copies = 2
-        when = now + f.latency_s
-        if self._held is None and f.reorder_pct and self.rng.random() * 100.0 < f.reorder_pct:
-            self.stats.reordered += 1
-            self._held = (when, item)
-            for _ in range(copies - 1):
-                self._schedule(when, item)
-            return
-        for _ in range(copies):
-            self._schedule(when, item)
-        if self._held is not None:
-            # The held message goes out right after this one: the two are swapped.
-            self._schedule(when, self._held[1])
-            self._held = None
-
-    def release(self, now: float) -> list[Any]:
-        if self._held is not None and now - self._held[0] > 0.2:
-            self._schedule(self._held[0] + 0.2, self._held[1])
-            self._held = None
-        if not self._queue:
-            return []
-        ready = [entry for entry in self._queue if entry[0] <= now]
-        if not ready:
-            return []
-        self._queue = [entry for entry in self._queue if entry[0] > now]
-        ready.sort(key=lambda entry: (entry[0], entry[1]))
-        return [entry[2] for entry in ready]
-
-
-# --- URLs -------------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class ListenAddress:
-    """Where the vehicle listens (``tcpin``, ``udpin``) or sends to (``udpout``)."""
-
-    scheme: str
-    host: str
-    port: int
-
-
-def parse_listen_url(url: str) -> ListenAddress:
-    """``tcpin://HOST:PORT``, ``udpin://HOST:PORT`` or ``udpout://HOST:PORT`` (also the
-    mavutil spelling ``tcpin:HOST:PORT``; ``tcp://`` means ``tcpin://`` for a vehicle)."""
-    text = url.strip()
-    if "://" not in text and text.count(":") == 2:
-        text = text.replace(":", "://", 1)
-    parts = urlsplit(text)
-    scheme = parts.scheme.lower()
-    if scheme == "tcp":
-        scheme = "tcpin"
-    if scheme not in ("tcpin", "udpin", "udpout"):
-        raise LinkError(
-            f"the simulator cannot listen on {url!r}; use tcpin://HOST:PORT, "
-            f"udpin://HOST:PORT or udpout://HOST:PORT (e.g. tcpin://127.0.0.1:5760)"
-        )
-    try:
-        port = parts.port
-    except ValueError as error:
-        raise LinkError(f"bad port in {url!r}: {error}; give a port 0-65535") from error
-    if port is None or not parts.hostname:
-        raise LinkError(f"{url!r} needs a host and a port, e.g. {scheme}://127.0.0.1:5760")
-    if scheme == "udpout" and port == 0:
-        raise LinkError(f"{url!r}: udpout needs the ground station's real port, not 0")
-    return ListenAddress(scheme, parts.hostname, port)
-
-
-# --- transport --------------------------------------------------------------------------------
-
-
-class _Transport:
-    """Sockets of one listening URL: several TCP clients, or UDP peers; bytes in and out."""
-
-    def __init__(self, address: ListenAddress) -> None:
-        self.address = address
-        self._listen: socket.socket | None = None
-        self._udp: socket.socket | None = None
-        self._clients: dict[int, socket.socket] = {}
-        self._udp_peers: list[tuple[str, int]] = []
-        self._next_id = 1
-        self.new_peers = 0  # ground stations that appeared since the vehicle last looked
-        self._pending: dict[int, bytearray] = {}
-        self.max_pending_bytes = 4 << 20
-        try:
-            if address.scheme == "tcpin":
-                sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
-                sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-                sock.bind((address.host, address.port))
-                sock.listen(8)
-                sock.setblocking(False)
-                self._listen = sock
-                self.port = sock.getsockname()[1]
-            else:
-                sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-                if address.scheme == "udpin":
-                    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-                    sock.bind((address.host, address.port))
-                    self.port = sock.getsockname()[1]
-                else:
-                    self._udp_peers.append((address.host, address.port))
-                    self.port = address.port
-                sock.setblocking(False)
-                self._udp = sock
-        except OSError as error:
-            raise LinkError(
-                f"cannot listen on {address.scheme}://{address.host}:{address.port}: "
-                f"{error.strerror or error}; choose a free port (or port 0 for any)"
-            ) from error
-
-    def sockets(self) -> list[socket.socket]:
-        socks = list(self._clients.values())
-        if self._listen is not None:
-            socks.append(self._listen)
-        if self._udp is not None:
-            socks.append(self._udp)
-        return socks
-
-    def poll(self, timeout_s: float) -> list[tuple[object, bytes]]:
-        """Wait up to ``timeout_s`` and return (peer key, bytes) received."""
-        socks = self.sockets()
-        out: list[tuple[object, bytes]] = []
-        try:
-            readable, _, _ = select.select(socks, [], [], timeout_s)
-        except (OSError, ValueError):
-            return out
-        for sock in readable:
-            if sock is self._listen:
-                with contextlib.suppress(OSError):
-                    conn, peer = sock.accept()
-                    conn.setblocking(False)
-                    conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-                    self._clients[self._next_id] = conn
-                    self.new_peers += 1
-                    log.info("simulated vehicle: ground station connected from %s:%s", *peer)
-                    self._next_id += 1
-            elif sock is self._udp:
-                while True:
-                    try:
-                        data, peer = sock.recvfrom(65535)
-                    except (BlockingIOError, InterruptedError):
-                        break
-                    except OSError:
-                        break
-                    if peer not in self._udp_peers:
-                        self._udp_peers.append(peer)
-                        self.new_peers += 1
-                    out.append((peer, data))
-            else:
-                key = next((k for k, s in self._clients.items() if s is sock), None)
-                if key is None:
-                    continue
-                try:
-                    data = sock.recv(65536)
-                except (BlockingIOError, InterruptedError):
-                    continue
-                except OSError:
-                    data = b""
-                if not data:
-                    log.info("simulated vehicle: ground station %s disconnected", key)
-                    self._drop(key)
-                    continue
-                out.append((("tcp", key), data))
-        return out
-
-    def flush(self) -> None:
-        """Send what TCP clients could not take before."""
-        for key, pending in list(self._pending.items()):
-            sock = self._clients.get(key)
-            if sock is None or not pending:
-                continue
-            try:
-                sent = sock.send(pending)
-            except (BlockingIOError, InterruptedError):
-                continue
-            except OSError:
-                self._drop(key)
-                continue
-            del pending[:sent]
-
-    def _drop(self, key: int) -> None:
-        self._pending.pop(key, None)
-        sock = self._clients.pop(key, None)
-        if sock is not None:
-            with contextlib.suppress(OSError):
-                sock.close()
-
-    def send(self, data: bytes) -> None:
-        for key, sock in list(self._clients.items()):
-            pending = self._pending.setdefault(key, bytearray())
-            if len(pending) < self.max_pending_bytes:
-                pending += data  # whole packets only: a client that does not read loses some
-            try:
-                sent = sock.send(pending)
-            except (BlockingIOError, InterruptedError):
-                continue
-            except OSError:
-                self._drop(key)
-                continue
-            del pending[:sent]
-        if self._udp is not None:
-            for peer in self._udp_peers:
-                with contextlib.suppress(OSError):
-                    self._udp.sendto(data, peer)
-
-    def close(self) -> None:
-        for key in list(self._clients):
-            self._drop(key)
-        for sock in (self._listen, self._udp):
-            if sock is not None:
-                with contextlib.suppress(OSError):
-                    sock.close()
-
-
-# --- how each autopilot stores mission items ----------------------------------------------------
-
-
-@dataclass(frozen=True)
-class WireItem:
-    """A mission item as MISSION_ITEM_INT carries it (float32 params, degE7 x/y)."""
-
-    frame: int
-    command: int
-    param1: float
-    param2: float
-    param3: float
-    param4: float
-    x: int
-    y: int
-    z: float
-    autocontinue: int = 1
-
-
-_F32 = np.float32
-_GLOBAL_FRAMES = frozenset({0, 3, 5, 6, 10, 11})
-_PLAIN = {5: 0, 6: 3, 11: 10}
-_INT_OF = {0: 5, 3: 6, 10: 11}
-
-# MAV_MISSION_RESULT values, from pymavlink's message definitions
-MAV_MISSION_ACCEPTED = M.MAV_MISSION_ACCEPTED
-MAV_MISSION_ERROR = M.MAV_MISSION_ERROR
-MAV_MISSION_UNSUPPORTED_FRAME = M.MAV_MISSION_UNSUPPORTED_FRAME
-MAV_MISSION_UNSUPPORTED = M.MAV_MISSION_UNSUPPORTED
-MAV_MISSION_NO_SPACE = M.MAV_MISSION_NO_SPACE
-MAV_MISSION_INVALID = M.MAV_MISSION_INVALID
-MAV_MISSION_INVALID_PARAM1 = M.MAV_MISSION_INVALID_PARAM1
-MAV_MISSION_INVALID_PARAM5_X = M.MAV_MISSION_INVALID_PARAM5_X
-MAV_MISSION_INVALID_PARAM6_Y = M.MAV_MISSION_INVALID_PARAM6_Y
-MAV_MISSION_INVALID_PARAM7 = M.MAV_MISSION_INVALID_PARAM7
-MAV_MISSION_INVALID_SEQUENCE = M.MAV_MISSION_INVALID_SEQUENCE
-MAV_MISSION_DENIED = M.MAV_MISSION_DENIED
-MAV_MISSION_OPERATION_CANCELLED = M.MAV_MISSION_OPERATION_CANCELLED
-
-#: Commands AP_Mission stores with a location (copy_location), which read back in a global frame.
-_AP_LOCATION_CMDS = frozenset({16, 17, 18, 19, 21, 22, 30, 31, 82, 84, 85, 94, 179, 189, 195, 201})
-
-
-def _f32(value: float) -> float:
-    return float(_F32(value))
-
-
-def _c_uint(value: float, bits: int) -> int:
-    """A C float -> unsigned integer conversion (truncation, saturated as ARM does)."""
-    if math.isnan(value):
-        return 0
-    return int(min(max(math.trunc(value), 0), (1 << bits) - 1))
-
-
-def _c_int(value: float, bits: int) -> int:
-    if math.isnan(value):
-        return 0
-    limit = 1 << (bits - 1)
-    return int(min(max(math.trunc(value), -limit), limit - 1))
-
-
-def _ap_nan_allowed(command: int) -> frozenset[int]:
-    """Params (1-4) that AP_Mission::sanity_check_params lets be NaN."""
-    if command in (16, 21, 22, 84):
-        return frozenset({4})
-    if command == 85:
-        return frozenset({3, 4})
-    return frozenset()
-
-
-def ardupilot_store(item: WireItem, vehicle_type: VehicleType) -> WireItem | int:
-    """What ArduPilot (AP_Mission, 4.5) stores for ``item``, as it will read it back.
-
-    Returns the stored item or a MAV_MISSION_RESULT error code. Rules (from AP_Mission's
-    mavlink_int_to_mission_cmd / mission_cmd_to_mavlink_int; REFERENCES.md section 3):
-    positional commands keep degE7 latitude/longitude and the altitude in whole centimetres
-    (truncated), their frame reads back in its plain form (GLOBAL 0, GLOBAL_RELATIVE_ALT 3,
-    GLOBAL_TERRAIN_ALT 10); other commands read back with frame 0 and x=y=z=0 unless the
-    command stores them; Copter keeps a waypoint's hold time in whole seconds and drops
-    acceptance radius, pass radius and yaw; Plane drops the hold time and keeps the radii as
-    integers clamped to 0-255. Commands this table does not know keep params 1-4 as float32.
-    """
-    params = (item.param1, item.param2, item.param3, item.param4)
-    allowed = _ap_nan_allowed(item.command)
-    for n, value in enumerate(params, start=1):
-        if math.isinf(value) or (math.isnan(value) and n not in allowed):
-            return MAV_MISSION_INVALID_PARAM1 + n - 1
-    if item.command == 0:
-        return MAV_MISSION_INVALID
-    p1, p2, p3, p4 = (0.0 if math.isnan(v) else v for v in params)
-    cmd = item.command
-    copter = vehicle_type is not VehicleType.FIXED_WING
-    out1 = out2 = out3 = out4 = 0.0
-    x = y = 0
-    z = 0.0
-    frame = 0
-    if cmd in _AP_LOCATION_CMDS:
-        plain = _PLAIN.get(item.frame, item.frame)
-        if plain not in (0, 2, 3, 10):
-            return MAV_MISSION_UNSUPPORTED_FRAME
-        if not (-900_000_000 <= item.x <= 900_000_000):
-            return MAV_MISSION_INVALID_PARAM5_X
-        if not (-1_800_000_000 <= item.y <= 1_800_000_000):
-            return MAV_MISSION_INVALID_PARAM6_Y
-        if not math.isfinite(item.z) or abs(item.z) >= 83000:
-            return MAV_MISSION_INVALID_PARAM7
-        frame = 0 if plain == 2 else plain
-        x, y = item.x, item.y
-        alt_cm = int(_F32(item.z) * _F32(100.0))  # int32 cast truncates toward zero
-        z = float(_F32(alt_cm) / _F32(100.0))
-    if cmd == MavCmd.NAV_WAYPOINT:
-        if copter:
-            out1 = float(_c_uint(p1, 16))
-        else:
-            out2 = float(min(_c_uint(p2, 16), 255))
-            out3 = float(min(_c_uint(p3, 16), 255))
-    elif cmd == MavCmd.NAV_SPLINE_WAYPOINT:
-        if not copter:
-            return MAV_MISSION_UNSUPPORTED
-        out1 = float(_c_uint(p1, 16))
-    elif cmd in (MavCmd.NAV_TAKEOFF, MavCmd.NAV_LAND):
-        out1 = float(_c_uint(p1, 16))
-    elif cmd == MavCmd.NAV_LOITER_TIME:
-        out1 = float(_c_uint(p1, 16))
-        out3 = -1.0 if p3 < 0 else 1.0
-        out4 = 1.0 if p4 > 0 else 0.0
-    elif cmd == MavCmd.NAV_LOITER_UNLIM:
-        out3 = float(_c_uint(abs(p3), 16)) * (-1.0 if p3 < 0 else 1.0)
-    elif cmd == MavCmd.NAV_RETURN_TO_LAUNCH:
-        pass
-    elif cmd == MavCmd.DO_CHANGE_SPEED:
-        out1, out2, out3 = float(_c_uint(p1, 8)), _f32(p2), _f32(p3)
-    elif cmd == MavCmd.DO_SET_CAM_TRIGG_DIST:
-        out1, out3 = _f32(p1), float(_c_uint(p3, 8))
-    elif cmd == MavCmd.DO_MOUNT_CONTROL:
-        out1, out2, out3 = _f32(p1), _f32(p2), _f32(p3)
-    elif cmd == MavCmd.DO_GIMBAL_MANAGER_PITCHYAW:
-        out1, out2, out3, out4 = _f32(p1), _f32(p2), _f32(p3), _f32(p4)
-        x = int(item.x) & 0xFFFFFFFF if item.x >= 0 else 0
-        z = float(_c_uint(item.z, 8))
-    elif cmd == MavCmd.IMAGE_START_CAPTURE:
-        out1 = float(_c_uint(p1, 8))
-        out2 = _f32(p2)
-        out3 = float(_c_uint(p3, 16))
-        out4 = float(_c_uint(p4, 16))
-    elif cmd == MavCmd.IMAGE_STOP_CAPTURE:
-        out1 = float(_c_uint(p1, 8))
-    elif cmd == MavCmd.DO_JUMP:
-        out1, out2 = float(_c_uint(p1, 16)), float(_c_int(p2, 16))
-    elif cmd in (MavCmd.CONDITION_DELAY, MavCmd.CONDITION_DISTANCE):
-        out1 = _f32(p1)
-    elif cmd == MavCmd.DO_DIGICAM_CONTROL:
-        out1, out2, out3, out4 = _f32(p1), _f32(p2), _f32(p3), _f32(p4)
-        # shooting command and command id live in x and y (uint8 each)
-        x, y = _c_uint(float(item.x), 8), _c_uint(float(item.y), 8)
-    elif cmd in _AP_LOCATION_CMDS:
-        out1 = float(_c_uint(p1, 16))
-    else:
-        out1, out2, out3, out4 = _f32(p1), _f32(p2), _f32(p3), _f32(p4)
-        x, y, z = item.x, item.y, _f32(item.z)
-        frame = _PLAIN.get(item.frame, item.frame)
-    return WireItem(frame, cmd, out1, out2, out3, out4, x, y, z, 1 if item.autocontinue else 0)
-
-
-def px4_store(item: WireItem, mission_type: int = MISSION_TYPE_MISSION) -> WireItem | int:
-    """What PX4 keeps: params as float32, positions degE7; in a mission, the frame in its
-    _INT form for positional items and MAV_FRAME_MISSION (2) for the other commands it knows;
-    fence and rally items keep their frame."""
-    try:
-        command: MavCmd | None = MavCmd(item.command)
-    except ValueError:
-        command = None
-    frame = item.frame
-    if mission_type != MISSION_TYPE_MISSION or command is None:
-        pass
-    elif command.is_nav:
-        plain = _PLAIN.get(item.frame, item.frame)
-        if plain not in (0, 3, 10):
-            return MAV_MISSION_UNSUPPORTED_FRAME
-        frame = _INT_OF[plain]
-    else:
-        frame = 2
-    return WireItem(
-        frame,
-        item.command,
-        _f32(item.param1),
-        _f32(item.param2),
-        _f32(item.param3),
-        _f32(item.param4),
-        item.x,
-        item.y,
-        _f32(item.z),
-        1 if item.autocontinue else 0,
-    )
-
-
-def wire_item_from_message(msg: Any) -> WireItem:
-    """MISSION_ITEM_INT (or legacy MISSION_ITEM: float degrees) -> :class:`WireItem`."""
-    if msg.get_type() == "MISSION_ITEM":
-        if msg.frame in _GLOBAL_FRAMES:
-            x, y = round(msg.x * 1e7), round(msg.y * 1e7)
-        else:
-            x, y = math.trunc(msg.x), math.trunc(msg.y)
-    else:
-        x, y = int(msg.x), int(msg.y)
-    return WireItem(
-        int(msg.frame),
-        int(msg.command),
-        float(msg.param1),
-        float(msg.param2),
-        float(msg.param3),
-        float(msg.param4),
-        x,
-        y,
-        float(msg.z),
-        int(msg.autocontinue),
-    )
-
-
-def wire_item_to_mission_item(item: WireItem) -> MissionItem:
-    """The :class:`MissionItem` a ground station reads for this stored item."""
-    return from_mission_item(_item_int_message(item, 0, 0, 0, 0))
-
-
-def _item_int_message(item: WireItem, seq: int, sysid: int, compid: int, mission_type: int) -> Any:
-    return M.MAVLink_mission_item_int_message(
-        sysid,
-        compid,
-        seq,
-        item.frame,
-        item.command,
-        0,
-        item.autocontinue,
-        item.param1,
-        item.param2,
-        item.param3,
-        item.param4,
-        item.x,
-        item.y,
-        item.z,
-        mission_type,
-    )
-
-
-def _item_float_message(item: WireItem, seq: int, sysid: int, compid: int, mission_type: int) -> Any:
-    if item.frame in _GLOBAL_FRAMES:
-        x, y = _f32(item.x * 1e-7), _f32(item.y * 1e-7)
-    else:
-        x, y = float(item.x), float(item.y)
-    return M.MAVLink_mission_item_message(
-        sysid,
-        compid,
-        seq,
-        item.frame,
-        item.command,
-        0,
-        item.autocontinue,
-        item.param1,
-        item.param2,
-        item.param3,
-        item.param4,
-        x,
-        y,
-        item.z,
-        mission_type,
-    )
+#: Longest wait for bytes between two steps of the flight (wall s). Replies do not wait for it:
+#: a message is answered in the loop iteration that received it.
+_POLL_S = 0.002
 
 
 # --- the vehicle --------------------------------------------------------------------------------
@@ -755,7 +224,7 @@ class SimulatedVehicle:
         self.component_id = component_id
 
         self._lock = threading.RLock()
-        self._stored: dict[int, list[WireItem]] = {t: [] for t in _MISSION_TYPES}
+        self._stored: dict[int, list[WireItem]] = {t: [] for t in MISSION_TYPES}
         self._upload: _Upload | None = None
         self._completed: _Completed | None = None
         self._warned: set[str] = set()
@@ -764,8 +233,8 @@ class SimulatedVehicle:
         if link_baud is not None and link_baud <= 0:
             raise InputError(f"link_baud is {link_baud}; give a positive baud rate or None")
         self.link_baud = link_baud
-        self._send_pipe = _FaultyPipe(self.faults, random.Random(self.faults.seed * 2 + 1), baud=link_baud)
-        self._recv_pipe = _FaultyPipe(
+        self._send_pipe = FaultyPipe(self.faults, random.Random(self.faults.seed * 2 + 1), baud=link_baud)
+        self._recv_pipe = FaultyPipe(
             self.faults,
             random.Random(self.faults.seed * 2 + 2),
             baud=link_baud,
@@ -779,7 +248,7 @@ class SimulatedVehicle:
             gps_fix_s=gps_fix_s,
             boot_utc_s=time.time(),
         )
-        self._transport: _Transport | None = None
+        self._transport: Transport | None = None
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()
         self._tlog: IO[bytes] | None = None
@@ -802,7 +271,7 @@ class SimulatedVehicle:
         """Open the socket and start the background thread."""
         if self._thread is not None:
             return
-        self._transport = _Transport(self.address)
+        self._transport = Transport(self.address)
         if self.tlog_path is not None:
             self.tlog_path.parent.mkdir(parents=True, exist_ok=True)
             self._tlog = open(self.tlog_path, "wb")  # noqa: SIM115 - closed in stop()
@@ -879,7 +348,7 @@ class SimulatedVehicle:
         with self._lock:
             stored: list[WireItem] = []
             if self.autopilot is Autopilot.ARDUPILOT and mission_type == MISSION_TYPE_MISSION:
-                stored.append(WireItem(0, 16, 0, 0, 0, 0, 0, 0, 0.0))
+                stored.append(NO_HOME)
             for seq, item in enumerate(items):
                 wire = wire_item_from_message(to_mission_item_int(item, seq, 1, 1, mission_type))
                 result = self._store(wire, mission_type)
@@ -945,7 +414,7 @@ class SimulatedVehicle:
         self._send_text(6, SIMULATOR_BANNER)
         last = time.monotonic()
         while not self._stop.is_set():
-            for peer, data in self._transport.poll(0.002):
+            for peer, data in self._transport.poll(self._poll_timeout_s(time.monotonic())):
                 self._receive_bytes(peer, data)
             if self._transport.new_peers:
                 # Say it to every ground station that connects, not only at boot, and let
@@ -959,6 +428,9 @@ class SimulatedVehicle:
             last = now
             for msg in self._recv_pipe.release(now):
                 self._handle(msg)
+            # Answers go out as soon as they are made, before the flight steps: the clock is
+            # read again because what was just sent is stamped later than ``now``.
+            self._flush(time.monotonic())
             with self._lock:
                 # --auto-start waits for a GPS fix and for a mission (preloaded or uploaded).
                 if self._auto_start and self.flight.gps_has_fix and self.flight.has_mission:
@@ -969,7 +441,18 @@ class SimulatedVehicle:
                 for when_s, msg in self.flight.step_timed(dt_wall * self.speedup):
                     self._send(msg, when_s)
                 self._protocol_timers(now)
-            self._flush(now)
+            self._flush(time.monotonic())
+
+    def _poll_timeout_s(self, now: float) -> float:
+        """How long the loop may wait for bytes: at most :data:`_POLL_S` (the flight's step),
+        less when a message held back by the link (latency, baud rate) falls due sooner, so it
+        leaves exactly when the link lets it and not up to a step later."""
+        timeout = _POLL_S
+        for pipe in (self._send_pipe, self._recv_pipe):
+            due = pipe.next_due_s()
+            if due is not None:
+                timeout = min(timeout, max(due - now, 0.0))
+        return timeout
 
     def _start_by_itself(self) -> None:
         ok, why = self.flight.arm()
@@ -1065,44 +548,15 @@ class SimulatedVehicle:
         items = list(self._stored[mission_type])
         if self.autopilot is Autopilot.ARDUPILOT and mission_type == MISSION_TYPE_MISSION:
             if not items:
-                items = [WireItem(0, 16, 0, 0, 0, 0, 0, 0, 0.0)]
+                items = [NO_HOME]
             items[0] = self._home_item()
         return items
 
     def _home_item(self) -> WireItem:
-        if not self.flight.gps_has_fix:
-            return WireItem(0, 16, 0.0, 0.0, 0.0, 0.0, 0, 0, 0.0)
-        h = self.flight.home
-        alt_cm = int(_F32(h.alt_amsl_m) * _F32(100.0))
-        return WireItem(
-            0,
-            16,
-            0.0,
-            0.0,
-            0.0,
-            0.0,
-            round(h.lat_deg * 1e7),
-            round(h.lon_deg * 1e7),
-            float(_F32(alt_cm) / _F32(100.0)),
-        )
+        return home_wire_item(self.flight.home if self.flight.gps_has_fix else None)
 
     def _store(self, item: WireItem, mission_type: int) -> WireItem | int:
-        if mission_type != MISSION_TYPE_MISSION:
-            return (
-                px4_store(item, mission_type)
-                if self.autopilot is Autopilot.PX4
-                else dataclasses.replace(
-                    item,
-                    param1=_f32(item.param1),
-                    param2=_f32(item.param2),
-                    param3=_f32(item.param3),
-                    param4=_f32(item.param4),
-                    z=_f32(item.z),
-                )
-            )
-        if self.autopilot is Autopilot.ARDUPILOT:
-            return ardupilot_store(item, self.vehicle_type)
-        return px4_store(item)
+        return store_item(item, self.autopilot, self.vehicle_type, mission_type)
 
     def _mission_changed(self, mission_type: int) -> None:
         if mission_type == MISSION_TYPE_MISSION:
@@ -1111,7 +565,7 @@ class SimulatedVehicle:
 
     def _on_mission_count(self, msg: Any) -> None:
         mission_type = int(getattr(msg, "mission_type", 0))
-        if mission_type not in _MISSION_TYPES:
+        if mission_type not in MISSION_TYPES:
             self._ack(msg, MAV_MISSION_UNSUPPORTED, mission_type)
             return
         up = self._upload
@@ -1187,7 +641,7 @@ class SimulatedVehicle:
         if self.faults.refuse == Refusal.INVALID and msg.seq == up.count // 2:
             result: WireItem | int = MAV_MISSION_INVALID
         elif ardupilot and mission_type == MISSION_TYPE_MISSION and msg.seq == 0:
-            result = WireItem(0, 16, 0, 0, 0, 0, 0, 0, 0.0)  # home: ArduPilot keeps its own
+            result = NO_HOME  # home: ArduPilot keeps its own
         else:
             result = self._store(wire, mission_type)
         if isinstance(result, int):
@@ -1244,7 +698,7 @@ class SimulatedVehicle:
 
     def _on_mission_request_list(self, msg: Any) -> None:
         mission_type = int(getattr(msg, "mission_type", 0))
-        if mission_type not in _MISSION_TYPES:
+        if mission_type not in MISSION_TYPES:
             self._ack(msg, MAV_MISSION_UNSUPPORTED, mission_type)
             return
         if self._upload is not None:
@@ -1257,7 +711,7 @@ class SimulatedVehicle:
 
     def _answer_request(self, msg: Any, as_int: bool) -> None:
         mission_type = int(getattr(msg, "mission_type", 0))
-        if mission_type not in _MISSION_TYPES:
+        if mission_type not in MISSION_TYPES:
             self._ack(msg, MAV_MISSION_UNSUPPORTED, mission_type)
             return
         if self._upload is not None:
@@ -1275,7 +729,7 @@ class SimulatedVehicle:
                 )
             self._ack(msg, MAV_MISSION_INVALID_SEQUENCE, mission_type)
             return
-        build = _item_int_message if as_int else _item_float_message
+        build = item_int_message if as_int else item_float_message
         if not as_int and self.autopilot is Autopilot.ARDUPILOT:
             self._warn_once("request", "got MISSION_REQUEST; use MISSION_REQUEST_INT!")
         self._send(
@@ -1308,7 +762,7 @@ class SimulatedVehicle:
 
     def _on_mission_clear_all(self, msg: Any) -> None:
         mission_type = int(getattr(msg, "mission_type", 0))
-        if mission_type not in _MISSION_TYPES:
+        if mission_type not in MISSION_TYPES:
             self._ack(msg, MAV_MISSION_UNSUPPORTED, mission_type)
             return
         up = self._upload

@@ -10,6 +10,7 @@ geometry of a survey built in the simulator's own metric frame.
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import math
 import socket
@@ -26,12 +27,12 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from acquisition.errors import LinkError
 from acquisition.mavlink_items import from_mission_item, to_mission_item_int
+from acquisition.simulator.faults import FaultyPipe
 from acquisition.simulator.flight import FlightConfig, FlightSimulator
 from acquisition.simulator.server import (
     FaultConfig,
     SimulatedVehicle,
     WireItem,
-    _FaultyPipe,
     ardupilot_store,
     parse_listen_url,
 )
@@ -552,7 +553,7 @@ def test_fault_pipe_rates_match_the_configuration() -> None:
 
     n = 20000
     faults = FaultConfig(loss_pct=30, duplicate_pct=10, reorder_pct=10, seed=7)
-    pipe = _FaultyPipe(faults, random.Random(7))
+    pipe = FaultyPipe(faults, random.Random(7))
     for k in range(n):
         pipe.offer(k, now=0.0)
     out = pipe.release(10.0)
@@ -710,6 +711,61 @@ def test_serial_link_speed_bounds_the_transfer_time() -> None:
     assert ack == ACCEPTED
     # The paced link cannot be beaten (how much slower it is, is the benchmark's business).
     assert elapsed > floor_s * 0.95
+
+
+def test_fault_pipe_says_when_its_next_message_is_due() -> None:
+    import random
+
+    pipe = FaultyPipe(FaultConfig(latency_s=0.1), random.Random(1))
+    assert pipe.next_due_s() is None
+    pipe.offer(b"x", now=5.0)
+    assert pipe.next_due_s() == pytest.approx(5.1)
+    assert pipe.release(5.09) == []
+    assert pipe.release(5.1) == [b"x"]
+    assert pipe.next_due_s() is None
+    # a 9600-baud line (8N1): 100 bytes take 100 x 10 / 9600 s, one message after the other
+    serial = FaultyPipe(FaultConfig(), random.Random(1), baud=9600)
+    serial.offer(bytes(100), now=0.0)
+    serial.offer(bytes(100), now=0.0)
+    assert serial.next_due_s() == pytest.approx(1000 / 9600)
+    assert len(serial.release(1000 / 9600)) == 1
+    assert serial.next_due_s() == pytest.approx(2000 / 9600)
+
+
+def _round_trip_s(sock: socket.socket, parser: Any, packer: Any, seq: int) -> float:
+    """Send MISSION_REQUEST_INT ``seq`` and wait for its MISSION_ITEM_INT; seconds taken."""
+    start = time.perf_counter()
+    sock.sendall(mavlink2.MAVLink_mission_request_int_message(1, 1, seq, 0).pack(packer))
+    while True:
+        for msg in parser.parse_buffer(sock.recv(4096)) or []:
+            if msg.get_type() == "MISSION_ITEM_INT" and msg.seq == seq:
+                return time.perf_counter() - start
+
+
+def test_serial_link_is_never_faster_than_its_baud_rate() -> None:
+    # Telemetry at 20x real time floods a 9600-baud link: bytes reach the ground station as
+    # fast as the line allows and never faster (8N1: 960 bytes/s), give or take one packet.
+    baud = 9600
+    with SimulatedVehicle(speedup=20, gps_fix_s=0, link_baud=baud) as vehicle:
+        host, port = vehicle.url_for_client.removeprefix("tcp://").split(":")
+        with socket.create_connection((host, int(port)), timeout=2.0) as sock:
+            time.sleep(1.2)  # let the link's buffer fill: from here the line is the limit
+            sock.setblocking(False)
+            with contextlib.suppress(BlockingIOError):
+                while sock.recv(65536):
+                    pass
+            sock.setblocking(True)
+            arrivals: list[tuple[float, int]] = []
+            end = time.monotonic() + 1.5
+            while time.monotonic() < end:
+                arrivals.append((time.monotonic(), len(sock.recv(65536))))
+    t0 = arrivals[0][0]
+    total = 0
+    for t, n in arrivals[1:]:
+        total += n
+        assert total <= (t - t0) * baud / 10 + 300, f"{total} bytes {t - t0:.3f} s after the first"
+    rate = total / (arrivals[-1][0] - t0)
+    assert rate > 0.5 * baud / 10  # and the line is used, not left idle (speed: the benchmark)
 
 
 # --- flight (no sockets) -----------------------------------------------------------------------

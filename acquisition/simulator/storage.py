@@ -1,0 +1,338 @@
+"""How ArduPilot and PX4 store mission items, and the conversions to and from the wire.
+
+A :class:`WireItem` is a mission item as MISSION_ITEM_INT carries it. :func:`ardupilot_store`
+and :func:`px4_store` return what each autopilot keeps of an uploaded item (as it reads back)
+or the MAV_MISSION_RESULT it refuses the item with; :func:`store_item` picks the rule for an
+autopilot and a mission type.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
+from planner.mission import Autopilot, HomePosition, MavCmd, MissionItem, VehicleType
+
+from ..mavlink_items import from_mission_item
+
+M = mavlink2  # the message set (ardupilotmega includes common)
+
+MISSION_TYPE_MISSION = 0
+MISSION_TYPE_FENCE = 1
+MISSION_TYPE_RALLY = 2
+MISSION_TYPES = (MISSION_TYPE_MISSION, MISSION_TYPE_FENCE, MISSION_TYPE_RALLY)
+
+
+@dataclass(frozen=True)
+class WireItem:
+    """A mission item as MISSION_ITEM_INT carries it (float32 params, degE7 x/y)."""
+
+    frame: int
+    command: int
+    param1: float
+    param2: float
+    param3: float
+    param4: float
+    x: int
+    y: int
+    z: float
+    autocontinue: int = 1
+
+
+_F32 = np.float32
+_GLOBAL_FRAMES = frozenset({0, 3, 5, 6, 10, 11})
+_PLAIN = {5: 0, 6: 3, 11: 10}
+_INT_OF = {0: 5, 3: 6, 10: 11}
+
+# MAV_MISSION_RESULT values, from pymavlink's message definitions
+MAV_MISSION_ACCEPTED = M.MAV_MISSION_ACCEPTED
+MAV_MISSION_ERROR = M.MAV_MISSION_ERROR
+MAV_MISSION_UNSUPPORTED_FRAME = M.MAV_MISSION_UNSUPPORTED_FRAME
+MAV_MISSION_UNSUPPORTED = M.MAV_MISSION_UNSUPPORTED
+MAV_MISSION_NO_SPACE = M.MAV_MISSION_NO_SPACE
+MAV_MISSION_INVALID = M.MAV_MISSION_INVALID
+MAV_MISSION_INVALID_PARAM1 = M.MAV_MISSION_INVALID_PARAM1
+MAV_MISSION_INVALID_PARAM5_X = M.MAV_MISSION_INVALID_PARAM5_X
+MAV_MISSION_INVALID_PARAM6_Y = M.MAV_MISSION_INVALID_PARAM6_Y
+MAV_MISSION_INVALID_PARAM7 = M.MAV_MISSION_INVALID_PARAM7
+MAV_MISSION_INVALID_SEQUENCE = M.MAV_MISSION_INVALID_SEQUENCE
+MAV_MISSION_DENIED = M.MAV_MISSION_DENIED
+MAV_MISSION_OPERATION_CANCELLED = M.MAV_MISSION_OPERATION_CANCELLED
+
+#: Commands AP_Mission stores with a location (copy_location), which read back in a global frame.
+_AP_LOCATION_CMDS = frozenset({16, 17, 18, 19, 21, 22, 30, 31, 82, 84, 85, 94, 179, 189, 195, 201})
+
+
+def _f32(value: float) -> float:
+    return float(_F32(value))
+
+
+def _c_uint(value: float, bits: int) -> int:
+    """A C float -> unsigned integer conversion (truncation, saturated as ARM does)."""
+    if math.isnan(value):
+        return 0
+    return int(min(max(math.trunc(value), 0), (1 << bits) - 1))
+
+
+def _c_int(value: float, bits: int) -> int:
+    if math.isnan(value):
+        return 0
+    limit = 1 << (bits - 1)
+    return int(min(max(math.trunc(value), -limit), limit - 1))
+
+
+def _ap_nan_allowed(command: int) -> frozenset[int]:
+    """Params (1-4) that AP_Mission::sanity_check_params lets be NaN."""
+    if command in (16, 21, 22, 84):
+        return frozenset({4})
+    if command == 85:
+        return frozenset({3, 4})
+    return frozenset()
+
+
+def ardupilot_store(item: WireItem, vehicle_type: VehicleType) -> WireItem | int:
+    """What ArduPilot (AP_Mission, 4.5) stores for ``item``, as it will read it back.
+
+    Returns the stored item or a MAV_MISSION_RESULT error code. Rules (from AP_Mission's
+    mavlink_int_to_mission_cmd / mission_cmd_to_mavlink_int; REFERENCES.md section 3):
+    positional commands keep degE7 latitude/longitude and the altitude in whole centimetres
+    (truncated), their frame reads back in its plain form (GLOBAL 0, GLOBAL_RELATIVE_ALT 3,
+    GLOBAL_TERRAIN_ALT 10); other commands read back with frame 0 and x=y=z=0 unless the
+    command stores them; Copter keeps a waypoint's hold time in whole seconds and drops
+    acceptance radius, pass radius and yaw; Plane drops the hold time and keeps the radii as
+    integers clamped to 0-255. Commands this table does not know keep params 1-4 as float32.
+    """
+    params = (item.param1, item.param2, item.param3, item.param4)
+    allowed = _ap_nan_allowed(item.command)
+    for n, value in enumerate(params, start=1):
+        if math.isinf(value) or (math.isnan(value) and n not in allowed):
+            return MAV_MISSION_INVALID_PARAM1 + n - 1
+    if item.command == 0:
+        return MAV_MISSION_INVALID
+    p1, p2, p3, p4 = (0.0 if math.isnan(v) else v for v in params)
+    cmd = item.command
+    copter = vehicle_type is not VehicleType.FIXED_WING
+    out1 = out2 = out3 = out4 = 0.0
+    x = y = 0
+    z = 0.0
+    frame = 0
+    if cmd in _AP_LOCATION_CMDS:
+        plain = _PLAIN.get(item.frame, item.frame)
+        if plain not in (0, 2, 3, 10):
+            return MAV_MISSION_UNSUPPORTED_FRAME
+        if not (-900_000_000 <= item.x <= 900_000_000):
+            return MAV_MISSION_INVALID_PARAM5_X
+        if not (-1_800_000_000 <= item.y <= 1_800_000_000):
+            return MAV_MISSION_INVALID_PARAM6_Y
+        if not math.isfinite(item.z) or abs(item.z) >= 83000:
+            return MAV_MISSION_INVALID_PARAM7
+        frame = 0 if plain == 2 else plain
+        x, y = item.x, item.y
+        alt_cm = int(_F32(item.z) * _F32(100.0))  # int32 cast truncates toward zero
+        z = float(_F32(alt_cm) / _F32(100.0))
+    if cmd == MavCmd.NAV_WAYPOINT:
+        if copter:
+            out1 = float(_c_uint(p1, 16))
+        else:
+            out2 = float(min(_c_uint(p2, 16), 255))
+            out3 = float(min(_c_uint(p3, 16), 255))
+    elif cmd == MavCmd.NAV_SPLINE_WAYPOINT:
+        if not copter:
+            return MAV_MISSION_UNSUPPORTED
+        out1 = float(_c_uint(p1, 16))
+    elif cmd in (MavCmd.NAV_TAKEOFF, MavCmd.NAV_LAND):
+        out1 = float(_c_uint(p1, 16))
+    elif cmd == MavCmd.NAV_LOITER_TIME:
+        out1 = float(_c_uint(p1, 16))
+        out3 = -1.0 if p3 < 0 else 1.0
+        out4 = 1.0 if p4 > 0 else 0.0
+    elif cmd == MavCmd.NAV_LOITER_UNLIM:
+        out3 = float(_c_uint(abs(p3), 16)) * (-1.0 if p3 < 0 else 1.0)
+    elif cmd == MavCmd.NAV_RETURN_TO_LAUNCH:
+        pass
+    elif cmd == MavCmd.DO_CHANGE_SPEED:
+        out1, out2, out3 = float(_c_uint(p1, 8)), _f32(p2), _f32(p3)
+    elif cmd == MavCmd.DO_SET_CAM_TRIGG_DIST:
+        out1, out3 = _f32(p1), float(_c_uint(p3, 8))
+    elif cmd == MavCmd.DO_MOUNT_CONTROL:
+        out1, out2, out3 = _f32(p1), _f32(p2), _f32(p3)
+    elif cmd == MavCmd.DO_GIMBAL_MANAGER_PITCHYAW:
+        out1, out2, out3, out4 = _f32(p1), _f32(p2), _f32(p3), _f32(p4)
+        x = int(item.x) & 0xFFFFFFFF if item.x >= 0 else 0
+        z = float(_c_uint(item.z, 8))
+    elif cmd == MavCmd.IMAGE_START_CAPTURE:
+        out1 = float(_c_uint(p1, 8))
+        out2 = _f32(p2)
+        out3 = float(_c_uint(p3, 16))
+        out4 = float(_c_uint(p4, 16))
+    elif cmd == MavCmd.IMAGE_STOP_CAPTURE:
+        out1 = float(_c_uint(p1, 8))
+    elif cmd == MavCmd.DO_JUMP:
+        out1, out2 = float(_c_uint(p1, 16)), float(_c_int(p2, 16))
+    elif cmd in (MavCmd.CONDITION_DELAY, MavCmd.CONDITION_DISTANCE):
+        out1 = _f32(p1)
+    elif cmd == MavCmd.DO_DIGICAM_CONTROL:
+        out1, out2, out3, out4 = _f32(p1), _f32(p2), _f32(p3), _f32(p4)
+        # shooting command and command id live in x and y (uint8 each)
+        x, y = _c_uint(float(item.x), 8), _c_uint(float(item.y), 8)
+    elif cmd in _AP_LOCATION_CMDS:
+        out1 = float(_c_uint(p1, 16))
+    else:
+        out1, out2, out3, out4 = _f32(p1), _f32(p2), _f32(p3), _f32(p4)
+        x, y, z = item.x, item.y, _f32(item.z)
+        frame = _PLAIN.get(item.frame, item.frame)
+    return WireItem(frame, cmd, out1, out2, out3, out4, x, y, z, 1 if item.autocontinue else 0)
+
+
+def px4_store(item: WireItem, mission_type: int = MISSION_TYPE_MISSION) -> WireItem | int:
+    """What PX4 keeps: params as float32, positions degE7; in a mission, the frame in its
+    _INT form for positional items and MAV_FRAME_MISSION (2) for the other commands it knows;
+    fence and rally items keep their frame."""
+    try:
+        command: MavCmd | None = MavCmd(item.command)
+    except ValueError:
+        command = None
+    frame = item.frame
+    if mission_type != MISSION_TYPE_MISSION or command is None:
+        pass
+    elif command.is_nav:
+        plain = _PLAIN.get(item.frame, item.frame)
+        if plain not in (0, 3, 10):
+            return MAV_MISSION_UNSUPPORTED_FRAME
+        frame = _INT_OF[plain]
+    else:
+        frame = 2
+    return WireItem(
+        frame,
+        item.command,
+        _f32(item.param1),
+        _f32(item.param2),
+        _f32(item.param3),
+        _f32(item.param4),
+        item.x,
+        item.y,
+        _f32(item.z),
+        1 if item.autocontinue else 0,
+    )
+
+
+def wire_item_from_message(msg: Any) -> WireItem:
+    """MISSION_ITEM_INT (or legacy MISSION_ITEM: float degrees) -> :class:`WireItem`."""
+    if msg.get_type() == "MISSION_ITEM":
+        if msg.frame in _GLOBAL_FRAMES:
+            x, y = round(msg.x * 1e7), round(msg.y * 1e7)
+        else:
+            x, y = math.trunc(msg.x), math.trunc(msg.y)
+    else:
+        x, y = int(msg.x), int(msg.y)
+    return WireItem(
+        int(msg.frame),
+        int(msg.command),
+        float(msg.param1),
+        float(msg.param2),
+        float(msg.param3),
+        float(msg.param4),
+        x,
+        y,
+        float(msg.z),
+        int(msg.autocontinue),
+    )
+
+
+def wire_item_to_mission_item(item: WireItem) -> MissionItem:
+    """The :class:`MissionItem` a ground station reads for this stored item."""
+    return from_mission_item(item_int_message(item, 0, 0, 0, 0))
+
+
+def item_int_message(item: WireItem, seq: int, sysid: int, compid: int, mission_type: int) -> Any:
+    return M.MAVLink_mission_item_int_message(
+        sysid,
+        compid,
+        seq,
+        item.frame,
+        item.command,
+        0,
+        item.autocontinue,
+        item.param1,
+        item.param2,
+        item.param3,
+        item.param4,
+        item.x,
+        item.y,
+        item.z,
+        mission_type,
+    )
+
+
+def item_float_message(item: WireItem, seq: int, sysid: int, compid: int, mission_type: int) -> Any:
+    if item.frame in _GLOBAL_FRAMES:
+        x, y = _f32(item.x * 1e-7), _f32(item.y * 1e-7)
+    else:
+        x, y = float(item.x), float(item.y)
+    return M.MAVLink_mission_item_message(
+        sysid,
+        compid,
+        seq,
+        item.frame,
+        item.command,
+        0,
+        item.autocontinue,
+        item.param1,
+        item.param2,
+        item.param3,
+        item.param4,
+        x,
+        y,
+        item.z,
+        mission_type,
+    )
+
+
+#: ArduPilot's item 0 before the GPS has a fix (and what it stores for an uploaded item 0).
+NO_HOME = WireItem(0, 16, 0.0, 0.0, 0.0, 0.0, 0, 0, 0.0)
+
+
+def home_wire_item(home: HomePosition | None) -> WireItem:
+    """ArduPilot's item 0: the home position (altitude AMSL in whole centimetres, as
+    AP_Mission keeps it), or zeros while there is none (``home`` None: no GPS fix yet)."""
+    if home is None:
+        return NO_HOME
+    alt_cm = int(_F32(home.alt_amsl_m) * _F32(100.0))
+    return WireItem(
+        0,
+        16,
+        0.0,
+        0.0,
+        0.0,
+        0.0,
+        round(home.lat_deg * 1e7),
+        round(home.lon_deg * 1e7),
+        float(_F32(alt_cm) / _F32(100.0)),
+    )
+
+
+def store_item(
+    item: WireItem, autopilot: Autopilot, vehicle_type: VehicleType, mission_type: int
+) -> WireItem | int:
+    """What ``autopilot`` keeps of ``item`` uploaded as ``mission_type``, or the
+    MAV_MISSION_RESULT it refuses the item with. Fence and rally items: PX4's rule; ArduPilot
+    keeps them as float32 without checking them."""
+    if mission_type != MISSION_TYPE_MISSION:
+        if autopilot is Autopilot.PX4:
+            return px4_store(item, mission_type)
+        return dataclasses.replace(
+            item,
+            param1=_f32(item.param1),
+            param2=_f32(item.param2),
+            param3=_f32(item.param3),
+            param4=_f32(item.param4),
+            z=_f32(item.z),
+        )
+    if autopilot is Autopilot.ARDUPILOT:
+        return ardupilot_store(item, vehicle_type)
+    return px4_store(item)
