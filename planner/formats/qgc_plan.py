@@ -53,6 +53,7 @@ from ..mission import (
     VehicleType,
 )
 from ..outputs import atomic_write_text
+from .mission_file import read_mission_bytes
 
 logger = logging.getLogger(__name__)
 
@@ -506,12 +507,7 @@ def parse_plan(text: str, *, source: str = "<plan>") -> Mission:
 def read_plan(path: str | os.PathLike[str]) -> Mission:
     """Read a QGroundControl .plan file into a :class:`Mission` (survey patterns expanded)."""
     file = Path(path)
-    try:
-        raw = file.read_bytes()
-    except IsADirectoryError:
-        raise MissionFileError(f"{file} is a folder; give the .plan file inside it") from None
-    except OSError as exc:
-        raise MissionFileError(f"cannot read {file}: {exc.strerror or exc}") from None
+    raw = read_mission_bytes(file, ".plan")
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError:

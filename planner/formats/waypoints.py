@@ -38,6 +38,7 @@ from pathlib import Path
 from ..errors import MissionFileError, MissionValidationError
 from ..mission import Autopilot, HomePosition, MavCmd, MavFrame, Mission, MissionItem
 from ..outputs import atomic_write_text
+from .mission_file import read_mission_bytes
 
 logger = logging.getLogger(__name__)
 
@@ -252,12 +253,7 @@ def parse_waypoints(text: str, *, source: str = "<waypoints>") -> Mission:
 def read_waypoints(path: str | os.PathLike[str]) -> Mission:
     """Read a QGC WPL 110 file. Raises :class:`MissionFileError` naming the file, line and field."""
     file = Path(path)
-    try:
-        raw = file.read_bytes()
-    except IsADirectoryError:
-        raise MissionFileError(f"{file} is a folder; give the .waypoints file inside it") from None
-    except OSError as exc:
-        raise MissionFileError(f"cannot read {file}: {exc.strerror or exc}") from None
+    raw = read_mission_bytes(file, ".waypoints")
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError:
