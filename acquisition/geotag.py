@@ -562,6 +562,22 @@ def geotag_images(
     for message in warnings:
         logger.warning("%s", message)
 
+    def result(frames_now: Sequence[FrameResult], outs: Sequence[str]) -> GeotagResult:
+        return GeotagResult(
+            frames=tuple(frames_now),
+            n_events=0 if events is None else len(events),
+            unmatched_events=unmatched_events,
+            offset_s=offset,
+            offset_source=offset_source,
+            drift_ppm=drift_ppm,
+            residual_mad_s=residual_mad,
+            tolerance_s=tolerance,
+            dry_run=dry_run,
+            out_dir=str(out_dir),
+            outputs=tuple(outs),
+            warnings=tuple(warnings),
+        )
+
     final: list[FrameResult] = ordered
     outputs: list[str] = []
     if not dry_run:
@@ -572,36 +588,10 @@ def geotag_images(
             backup_dir=None if backup_dir is None else Path(backup_dir),
             overwrite=overwrite,
             report=lambda n: report(len(paths) + n, total),
-            summary=lambda frames_now, outs: GeotagResult(
-                frames=tuple(frames_now),
-                n_events=0 if events is None else len(events),
-                unmatched_events=unmatched_events,
-                offset_s=offset,
-                offset_source=offset_source,
-                drift_ppm=drift_ppm,
-                residual_mad_s=residual_mad,
-                tolerance_s=tolerance,
-                dry_run=dry_run,
-                out_dir=str(out_dir),
-                outputs=tuple(outs),
-                warnings=tuple(warnings),
-            ),
+            summary=result,
         )
     report(total, total)
-    return GeotagResult(
-        frames=tuple(final),
-        n_events=0 if events is None else len(events),
-        unmatched_events=unmatched_events,
-        offset_s=offset,
-        offset_source=offset_source,
-        drift_ppm=drift_ppm,
-        residual_mad_s=residual_mad,
-        tolerance_s=tolerance,
-        dry_run=dry_run,
-        out_dir=str(out_dir),
-        outputs=tuple(outputs),
-        warnings=tuple(warnings),
-    )
+    return result(final, outputs)
 
 
 def _json_clean(value: Any) -> Any:
