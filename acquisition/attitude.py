@@ -41,15 +41,49 @@ def quat_from_euler_deg(yaw_deg: ArrayLike, pitch_deg: ArrayLike, roll_deg: Arra
     return np.asarray(np.atleast_2d(q), float)
 
 
+#: Below this cos(pitch) the Euler angles are in gimbal lock (pitch within 6e-7 deg of +-90):
+#: yaw and roll then turn about the same axis, and only their sum (pitch -90) or difference
+#: (pitch +90) is defined.
+_LOCK_COS = 1e-8
+
+
 def euler_deg_from_quat(q: ArrayLike) -> tuple[F64, F64, F64]:
-    """(yaw 0-360, pitch -90..90, roll -180..180) degrees of quaternions (w, x, y, z)."""
+    """(yaw 0-360, pitch -90..90, roll -180..180) degrees of quaternions (w, x, y, z).
+
+    At pitch +-90 (gimbal lock, e.g. a gimbal looking straight down) the rotation is carried by
+    the yaw alone and the roll is 0, so that yaw stays the heading of the body's y axis turned
+    back by 90 degrees (for a nadir gimbal: where the top of the image points) instead of two
+    ill-conditioned angles whose sum alone is defined."""
     qa = np.atleast_2d(np.asarray(q, float))
     qa = qa / np.linalg.norm(qa, axis=1, keepdims=True)
     w, x, y, z = qa[:, 0], qa[:, 1], qa[:, 2], qa[:, 3]
-    yaw = np.degrees(np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))) % 360.0
-    pitch = np.degrees(np.arcsin(np.clip(2.0 * (w * y - z * x), -1.0, 1.0)))
-    roll = np.degrees(np.arctan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y)))
-    return np.asarray(yaw, float), np.asarray(pitch, float), np.asarray(roll, float)
+    # Elements of the rotation matrix ned_from_body.
+    r00 = 1.0 - 2.0 * (y * y + z * z)
+    r10 = 2.0 * (x * y + w * z)
+    r20 = 2.0 * (x * z - w * y)
+    r21 = 2.0 * (y * z + w * x)
+    r22 = 1.0 - 2.0 * (x * x + y * y)
+    r01 = 2.0 * (x * y - w * z)
+    r11 = 1.0 - 2.0 * (x * x + z * z)
+    cos_pitch = np.hypot(r00, r10)
+    locked = cos_pitch < _LOCK_COS
+    pitch = np.degrees(np.arctan2(-r20, cos_pitch))
+    yaw = np.where(locked, np.arctan2(-r01, r11), np.arctan2(r10, r00))
+    roll = np.where(locked, 0.0, np.arctan2(r21, r22))
+    yaw_deg = np.degrees(yaw) % 360.0
+    yaw_deg = np.where(yaw_deg >= 360.0, 0.0, yaw_deg)  # -1e-30 % 360 rounds to 360.0
+    return (
+        np.asarray(yaw_deg, float),
+        np.asarray(pitch, float),
+        np.asarray(np.degrees(roll), float),
+    )
+
+
+def quat_from_yaw_deg(yaw_deg: ArrayLike) -> F64:
+    """Rotations about the down axis by ``yaw_deg`` (clockwise seen from above), (N, 4)."""
+    half = np.radians(np.asarray(yaw_deg, float)) / 2.0
+    zero = np.zeros_like(half)
+    return np.asarray(np.atleast_2d(np.stack([np.cos(half), zero, zero, np.sin(half)], axis=-1)), float)
 
 
 def quat_multiply(a: ArrayLike, b: ArrayLike) -> F64:
@@ -108,24 +142,41 @@ class GimbalMode(StrEnum):
 _NADIR_FROM_FORWARD = quat_from_euler_deg(0.0, 90.0, 0.0)
 
 
+def camera_quat(
+    vehicle_q: ArrayLike, gimbal_q: ArrayLike | None = None, mode: GimbalMode = GimbalMode.EARTH
+) -> F64:
+    """ned_from_camera quaternions (N, 4) of the virtual airframe of the module docstring: its
+    down axis is the camera's optical axis and its nose the top of the image.
+
+    ``vehicle_q``: ned_from_body of the vehicle. ``gimbal_q``: the gimbal's rotation of a
+    forward-looking camera (x the optical axis, y image right, z image down), referenced as
+    ``mode`` says: from NED (earth), from NED turned by the vehicle's yaw (stabilized), or from
+    the body (body). Without a gimbal the camera is fixed to the airframe, looking down.
+    """
+    vq = np.atleast_2d(np.asarray(vehicle_q, float))
+    if gimbal_q is None:
+        return vq
+    gq = np.atleast_2d(np.asarray(gimbal_q, float))
+    if mode is GimbalMode.EARTH:
+        ned_from_camera = gq
+    elif mode is GimbalMode.STABILIZED:
+        vehicle_yaw, _, _ = euler_deg_from_quat(vq)
+        ned_from_camera = quat_multiply(quat_from_yaw_deg(vehicle_yaw), gq)
+    else:
+        ned_from_camera = quat_multiply(vq, gq)
+    return quat_multiply(ned_from_camera, np.broadcast_to(_NADIR_FROM_FORWARD, ned_from_camera.shape))
+
+
 def camera_attitude_deg(
     vehicle_ypr_deg: tuple[ArrayLike, ArrayLike, ArrayLike],
     gimbal_ypr_deg: tuple[ArrayLike, ArrayLike, ArrayLike] | None = None,
     mode: GimbalMode = GimbalMode.EARTH,
 ) -> tuple[F64, F64, F64]:
-    """Camera (yaw, pitch, roll) in the convention of the module docstring.
+    """Camera (yaw, pitch, roll) in the convention of the module docstring, from the vehicle's
+    and the gimbal's Euler angles (see :func:`camera_quat`).
 
     Without gimbal angles the camera is taken as fixed to the airframe, looking down.
     """
     vehicle_q = quat_from_euler_deg(*vehicle_ypr_deg)
-    if gimbal_ypr_deg is None:
-        return euler_deg_from_quat(vehicle_q)
-    g_yaw, g_pitch, g_roll = (np.asarray(a, float) for a in gimbal_ypr_deg)
-    if mode is GimbalMode.EARTH:
-        ned_from_camera = quat_from_euler_deg(g_yaw, g_pitch, g_roll)
-    elif mode is GimbalMode.STABILIZED:
-        v_yaw = np.asarray(vehicle_ypr_deg[0], float)
-        ned_from_camera = quat_from_euler_deg(v_yaw + g_yaw, g_pitch, g_roll)
-    else:
-        ned_from_camera = quat_multiply(vehicle_q, quat_from_euler_deg(g_yaw, g_pitch, g_roll))
-    return euler_deg_from_quat(quat_multiply(ned_from_camera, _NADIR_FROM_FORWARD))
+    gimbal_q = None if gimbal_ypr_deg is None else quat_from_euler_deg(*gimbal_ypr_deg)
+    return euler_deg_from_quat(camera_quat(vehicle_q, gimbal_q, mode))

@@ -23,7 +23,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from planner.geo import LocalFrame
 
-from .attitude import GimbalMode, camera_attitude_deg, euler_deg_from_quat, quat_from_euler_deg, slerp
+from .attitude import GimbalMode, camera_quat, euler_deg_from_quat, quat_from_euler_deg, slerp
 from .telemetry.model import AttitudeTrack, PositionTrack
 
 logger = logging.getLogger(__name__)
@@ -187,25 +187,24 @@ def interpolate_poses(
     alt_amsl = alt(positions.alt_amsl_m)
     alt_rel = alt(positions.alt_rel_home_m)
 
-    def attitude_at(
-        track: AttitudeTrack | None,
-    ) -> tuple[F64, F64, F64, F64, list[str | None]] | None:
+    def attitude_at(track: AttitudeTrack | None) -> tuple[F64, F64, list[str | None]] | None:
+        """Slerped quaternions at the times, the interval lengths, the reasons."""
         if track is None or len(track) == 0:
             return None
         a_order = np.argsort(track.time_utc_s, kind="stable")
         at = track.time_utc_s[a_order]
         q = quat_from_euler_deg(track.yaw_deg[a_order], track.pitch_deg[a_order], track.roll_deg[a_order])
         a_lo, a_hi, a_w, a_gap, a_reasons = _bracket(at, t, max_gap_s)
-        yaw_a, pitch_a, roll_a = euler_deg_from_quat(slerp(q[a_lo], q[a_hi], a_w))
-        return yaw_a, pitch_a, roll_a, a_gap, a_reasons
+        return slerp(q[a_lo], q[a_hi], a_w), a_gap, a_reasons
 
+    # Vehicle and gimbal stay quaternions until the camera's angles are taken: Euler angles of
+    # a gimbal looking straight down are in gimbal lock, where yaw and roll are one turn.
     vehicle = attitude_at(attitudes)
     gimbal_at = attitude_at(gimbal)
     cam_yaw = cam_pitch = cam_roll = None
     if vehicle is not None:
-        g = None if gimbal_at is None else (gimbal_at[0], gimbal_at[1], gimbal_at[2])
-        cam_yaw, cam_pitch, cam_roll = camera_attitude_deg(
-            (vehicle[0], vehicle[1], vehicle[2]), g, gimbal_mode
+        cam_yaw, cam_pitch, cam_roll = euler_deg_from_quat(
+            camera_quat(vehicle[0], None if gimbal_at is None else gimbal_at[0], gimbal_mode)
         )
 
     poses: list[InterpolatedPose | None] = []
@@ -216,14 +215,14 @@ def interpolate_poses(
         has_attitude = (
             cam_yaw is not None
             and vehicle is not None
-            and vehicle[4][k] is None
-            and (gimbal is None or (gimbal_at is not None and gimbal_at[4][k] is None))
+            and vehicle[2][k] is None
+            and (gimbal_at is None or gimbal_at[2][k] is None)
         )
         attitude_gap = None
         if has_attitude and vehicle is not None:
-            attitude_gap = float(vehicle[3][k])
+            attitude_gap = float(vehicle[1][k])
             if gimbal_at is not None:
-                attitude_gap = max(attitude_gap, float(gimbal_at[3][k]))
+                attitude_gap = max(attitude_gap, float(gimbal_at[1][k]))
         poses.append(
             InterpolatedPose(
                 time_utc_s=float(t[k]),

@@ -38,6 +38,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ..attitude import euler_deg_from_quat
 from ..errors import TelemetryError
 from .gpstime import BootClock, fit_boot_clock, gps_usec_to_utc_s, time_order
 from .model import AttitudeTrack, CameraEvents, FlightLog, PositionTrack
@@ -74,15 +75,16 @@ _WANTED = (
 def euler_deg_from_quaternion(w: ArrayLike, x: ArrayLike, y: ArrayLike, z: ArrayLike) -> tuple[F64, F64, F64]:
     """(roll, pitch, yaw) in degrees, Tait-Bryan z-y'-x'' (yaw, then pitch, then roll), of the
     rotation from body (FRD) to local NED given as a quaternion (w, x, y, z), the convention of
-    MAVLink and PX4. Yaw is 0-360 clockwise from north; the quaternion need not be unit."""
-    qw, qx, qy, qz = (np.asarray(a, dtype=np.float64) for a in (w, x, y, z))
-    norm = np.sqrt(qw**2 + qx**2 + qy**2 + qz**2)
-    norm = np.where(norm > 0, norm, 1.0)
-    qw, qx, qy, qz = qw / norm, qx / norm, qy / norm, qz / norm
-    roll = np.arctan2(2 * (qw * qx + qy * qz), 1 - 2 * (qx**2 + qy**2))
-    pitch = np.arcsin(np.clip(2 * (qw * qy - qz * qx), -1.0, 1.0))
-    yaw = np.arctan2(2 * (qw * qz + qx * qy), 1 - 2 * (qy**2 + qz**2))
-    return np.degrees(roll), np.degrees(pitch), np.mod(np.degrees(yaw), 360.0)
+    MAVLink and PX4. Yaw is 0-360 clockwise from north; the quaternion need not be unit (a zero
+    quaternion reads as no rotation). At pitch +-90 (a gimbal looking straight down) the roll is
+    0 and the yaw carries the whole turn (:func:`acquisition.attitude.euler_deg_from_quat`)."""
+    q = np.stack([np.asarray(a, dtype=np.float64) for a in np.broadcast_arrays(w, x, y, z)], axis=-1)
+    flat = np.atleast_2d(q.reshape(-1, 4)).copy()
+    zero = np.linalg.norm(flat, axis=1) == 0
+    flat[zero] = (1.0, 0.0, 0.0, 0.0)
+    yaw, pitch, roll = euler_deg_from_quat(flat)
+    shape = q.shape[:-1]
+    return roll.reshape(shape)[()], pitch.reshape(shape)[()], yaw.reshape(shape)[()]
 
 
 def yaw_to_earth_deg(
