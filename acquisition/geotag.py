@@ -29,9 +29,11 @@ import json
 import logging
 import math
 import os
+import re
 import shutil
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from datetime import UTC, datetime
 from enum import StrEnum
 from pathlib import Path
 from typing import Any
@@ -40,6 +42,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from planner.errors import InputError, OutputExistsError
+from planner.geo import LocalFrame
 from planner.outputs import atomic_write_text, check_output_dir, staged_output_dir
 
 from . import exif, sidecars
@@ -92,7 +95,87 @@ class OffsetSource(StrEnum):
     GIVEN = "given"  # --offset-s, used as is (time only) or as the alignment to refine
     MATCHED = "matched"  # from the alignment with camera events
     EXIF_GPS = "exif_gps"  # frames' own GPS time stamps versus capture time
+    SYNC = "sync"  # from the crew's sync points (a frame's known time or position)
     ASSUMED_ZERO = "assumed_zero"
+
+
+#: How well a crew knows a sync frame's time (read off a GPS clock, a phone), seconds.
+SYNC_TIME_ACCURACY_S = 1.0
+#: How far, beyond the nearest, a pass of the track or an event may be from a sync position and
+#: still be where the frame was taken (a point picked on a map under a nadir frame), metres.
+SYNC_POSITION_RADIUS_M = 15.0
+#: A sync position farther than this from every pass of the flight is not on it, metres.
+SYNC_POSITION_MAX_M = 100.0
+
+
+@dataclass(frozen=True, kw_only=True)
+class SyncPoint:
+    """A frame the crew can place independently: its known UTC time (``time_utc_s``), or the
+    known position it was taken from (``lat_deg``, ``lon_deg``). ``frame`` is the file name,
+    or its path relative to the image folder when names repeat across folders."""
+
+    frame: str
+    time_utc_s: float | None = None
+    lat_deg: float | None = None
+    lon_deg: float | None = None
+
+    def __post_init__(self) -> None:
+        if (self.time_utc_s is None) == (self.lat_deg is None or self.lon_deg is None):
+            raise InputError(f"sync point for {self.frame}: give a time or a position (one of them)")
+        if (
+            self.lat_deg is not None
+            and self.lon_deg is not None
+            and not (-90.0 <= self.lat_deg <= 90.0 and -180.0 <= self.lon_deg <= 180.0)
+        ):
+            raise InputError(
+                f"sync position {self.lat_deg}, {self.lon_deg} for {self.frame} is not a latitude, "
+                f"longitude in degrees (WGS84)"
+            )
+
+
+def parse_sync_time(text: str) -> SyncPoint:
+    """``FRAME=TIME`` (``--sync``): TIME in ISO 8601 UTC (``2026-11-22T10:32:05.4Z``; a time
+    without a zone is read as UTC) or POSIX seconds."""
+    frame, sep, value = text.rpartition("=")
+    if not sep or not frame.strip() or not value.strip():
+        raise InputError(
+            f"sync point {text!r}: expected FRAME=TIME, e.g. IMG_0001.JPG=2026-11-22T10:32:05.4Z"
+        )
+    value = value.strip()
+    try:
+        time_utc_s = float(value)
+    except ValueError:
+        try:
+            stamp = datetime.fromisoformat(value.replace("Z", "+00:00").replace("z", "+00:00"))
+        except ValueError:
+            raise InputError(
+                f"sync time {value!r} for {frame}: not an ISO 8601 time (2026-11-22T10:32:05.4Z) "
+                f"or POSIX seconds"
+            ) from None
+        if stamp.tzinfo is None:
+            stamp = stamp.replace(tzinfo=UTC)
+        time_utc_s = stamp.timestamp()
+    if not math.isfinite(time_utc_s):
+        raise InputError(f"sync time {value!r} for {frame} is not a finite number")
+    return SyncPoint(frame=frame.strip(), time_utc_s=time_utc_s)
+
+
+def parse_sync_position(text: str) -> SyncPoint:
+    """``FRAME=LAT,LON`` (``--sync-position``): the position the frame was taken from, WGS84
+    degrees."""
+    frame, sep, value = text.rpartition("=")
+    parts = value.split(",")
+    if not sep or not frame.strip() or len(parts) != 2:
+        raise InputError(
+            f"sync position {text!r}: expected FRAME=LAT,LON, e.g. IMG_0001.JPG=42.0012,-93.0004"
+        )
+    try:
+        lat, lon = (float(p) for p in parts)
+    except ValueError:
+        raise InputError(f"sync position {value!r} for {frame}: LAT,LON must be numbers (degrees)") from None
+    if not (math.isfinite(lat) and math.isfinite(lon)):
+        raise InputError(f"sync position {value!r} for {frame}: not finite")
+    return SyncPoint(frame=frame.strip(), lat_deg=lat, lon_deg=lon)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -251,7 +334,8 @@ class GeotagResult:
 
 
 def list_images(image_dir: str | os.PathLike[str]) -> list[Path]:
-    """JPEG files under ``image_dir`` (recursively, cards split frames into subfolders), by path."""
+    """JPEG files under ``image_dir`` (recursively: a card's DCIM folder holds 100CANON,
+    101CANON...), by path."""
     root = Path(image_dir)
     if not root.is_dir():
         raise InputError(f"{root} is not a folder of images; give the folder that holds the JPEGs")
@@ -260,6 +344,70 @@ def list_images(image_dir: str | os.PathLike[str]) -> list[Path]:
         for p in root.rglob("*")
         if p.is_file() and p.suffix.lower() in JPEG_SUFFIXES and not p.name.startswith(".")
     )
+
+
+def output_names(image_dir: str | os.PathLike[str], paths: Sequence[Path]) -> dict[Path, str]:
+    """The name each frame gets in the outputs (tagged copies, geo.txt, the CSV, the report).
+
+    Its own file name while names are unique; when names repeat across folders (cameras
+    restart at IMG_0001 in each DCIM subfolder), every frame in a subfolder is prefixed with
+    its folder path relative to ``image_dir``: ``100CANON/IMG_0001.JPG`` becomes
+    ``100CANON_IMG_0001.JPG``, so that the copies sit side by side in one flat folder, as
+    reconstruction tools want them, and nothing is overwritten."""
+    root = Path(image_dir)
+    names = {p: p.name for p in paths}
+    if len({n.lower() for n in names.values()}) == len(names):
+        return names
+    out: dict[Path, str] = {}
+    for p in paths:
+        try:
+            folders = p.relative_to(root).parts[:-1]
+        except ValueError:
+            folders = p.parent.parts[-1:]
+        prefix = "_".join(re.sub(r"[\s,]+", "-", part) for part in folders)
+        out[p] = f"{prefix}_{p.name}" if prefix else p.name
+    return out
+
+
+def _resolve_sync_frame(frame: str, root: Path, paths: Sequence[Path], names: dict[Path, str]) -> Path:
+    wanted = frame.replace("\\", "/").strip("/").lower()
+    by_output = [p for p in paths if names[p].lower() == wanted]
+    by_relative = [p for p in paths if p.relative_to(root).as_posix().lower() == wanted]
+    by_name = [p for p in paths if p.name.lower() == wanted]
+    for found in (by_relative, by_output, by_name):
+        if len(found) == 1:
+            return found[0]
+    if len(by_name) > 1:
+        options = ", ".join(p.relative_to(root).as_posix() for p in by_name[:4])
+        raise InputError(f"sync frame {frame} names several images ({options}); give its folder too")
+    raise InputError(f"sync frame {frame} is not an image under {root}")
+
+
+def prepare_images(
+    image_dir: str | os.PathLike[str],
+    out_dir: str | os.PathLike[str],
+    *,
+    dry_run: bool = False,
+    in_place: bool = False,
+    backup_dir: str | os.PathLike[str] | None = None,
+    overwrite: bool = False,
+    sync: Sequence[SyncPoint] = (),
+) -> list[Path]:
+    """Check the images and the options before anything slow (reading a large log): the
+    folder holds JPEGs, the output can be written, the sync frames exist. Returns the images."""
+    paths = list_images(image_dir)
+    if not paths:
+        raise InputError(f"no JPEG images (.jpg, .jpeg) under {image_dir}: give the card's DCIM folder")
+    if in_place and backup_dir is None:
+        raise InputError("--in-place needs --backup-dir: the originals are copied there first")
+    if not dry_run:
+        check_output_dir(out_dir, overwrite=overwrite)
+        if not in_place and Path(out_dir).resolve() == Path(image_dir).resolve():
+            raise InputError("the output folder is the image folder; choose another -o or use --in-place")
+    names = output_names(image_dir, paths)
+    for point in sync:
+        _resolve_sync_frame(point.frame, Path(image_dir), paths, names)
+    return paths
 
 
 @dataclass
@@ -312,12 +460,162 @@ def _event_pose(events: CameraEvents, j: int) -> InterpolatedPose | None:
     )
 
 
+@dataclass(frozen=True)
+class _Pass:
+    time_utc_s: float
+    distance_m: float
+    speed_m_s: float
+
+
+def _passes(times_s: F64, lat_deg: F64, lon_deg: F64, point: SyncPoint) -> list[_Pass]:
+    """Where a track (or a sequence of event positions) comes closest to a sync position: one
+    entry per pass (local minimum of the distance), nearest first."""
+    assert point.lat_deg is not None and point.lon_deg is not None
+    order = np.argsort(times_s, kind="stable")
+    t, lat, lon = times_s[order], lat_deg[order], lon_deg[order]
+    frame = LocalFrame.utm_for(point.lon_deg, point.lat_deg)
+    x, y = frame.to_xy(lon, lat)
+    px, py = frame.to_xy(point.lon_deg, point.lat_deg)
+    if t.size == 1:
+        return [_Pass(float(t[0]), float(np.hypot(x[0] - px, y[0] - py)), 0.0)]
+    dx, dy, dt = np.diff(x), np.diff(y), np.diff(t)
+    length2 = dx * dx + dy * dy
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u = np.clip(np.where(length2 > 0, ((px - x[:-1]) * dx + (py - y[:-1]) * dy) / length2, 0.0), 0.0, 1.0)
+        speed = np.where(dt > 0, np.sqrt(length2) / dt, 0.0)
+    d = np.hypot(x[:-1] + u * dx - px, y[:-1] + u * dy - py)
+    tc = t[:-1] + u * dt
+    minima = [
+        k
+        for k in range(d.size)
+        if (k == 0 or d[k] <= d[k - 1]) and (k == d.size - 1 or d[k] < d[k + 1]) and np.isfinite(d[k])
+    ]
+    passes: list[_Pass] = []
+    for k in sorted(minima, key=lambda k: float(d[k])):
+        if all(abs(float(tc[k]) - p.time_utc_s) > 5.0 for p in passes):  # one pass, several minima
+            passes.append(_Pass(float(tc[k]), float(d[k]), float(speed[k])))
+    return passes
+
+
+def _near_passes(passes: list[_Pass], point: SyncPoint) -> list[_Pass]:
+    """The passes a sync position may belong to: within SYNC_POSITION_RADIUS_M of the nearest."""
+    if not passes or passes[0].distance_m > SYNC_POSITION_MAX_M:
+        nearest = f"{passes[0].distance_m:.0f} m" if passes else "nowhere"
+        raise InputError(
+            f"sync position {point.lat_deg}, {point.lon_deg} of {point.frame} is not on the flight "
+            f"(the nearest pass is {nearest} away, more than {SYNC_POSITION_MAX_M:g} m): check the "
+            f"position and the frame"
+        )
+    return [p for p in passes if p.distance_m <= passes[0].distance_m + SYNC_POSITION_RADIUS_M]
+
+
+def _offset_cost_warning(offset: float, source: OffsetSource, speeds_m_s: Sequence[float]) -> str | None:
+    """What a wrong camera clock offset costs when frames are placed by time: metres per second
+    of error at the flight's ground speed."""
+    moving = [s for s in speeds_m_s if s > 0.5]
+    if not moving:
+        return None
+    speed = float(np.median(moving))
+    how = {
+        OffsetSource.GIVEN: "given (--offset-s)",
+        OffsetSource.EXIF_GPS: "from the frames' own GPS time stamps",
+        OffsetSource.SYNC: "from the sync points",
+        OffsetSource.ASSUMED_ZERO: "ASSUMED to be 0 s (no camera events, no --offset-s, no sync point)",
+    }.get(source, str(source))
+    return (
+        f"frames are placed by their capture time: the camera clock offset {offset:+.3f} s is "
+        f"{how}; every second it is wrong moves each frame about {speed:.1f} m along the track "
+        f"(median ground speed {speed:.1f} m/s), and a wrong time zone by hours puts them "
+        f"outside the log. Give a sync point (--sync FRAME=TIME or --sync-position "
+        f"FRAME=LAT,LON) to check it"
+    )
+
+
+def _sync_windows_with_events(
+    sync_capture: Sequence[tuple[SyncPoint, float]], events: CameraEvents, log: FlightLog
+) -> list[list[tuple[float, float]]]:
+    """Per sync point, the camera clock offsets it allows, as (centre, half width) windows: a
+    known time allows offsets within SYNC_TIME_ACCURACY_S of capture minus that time; a known
+    position allows the offsets that put the frame on one of the events taken there."""
+    windows: list[list[tuple[float, float]]] = []
+    steps = np.diff(np.sort(events.time_utc_s))
+    half_step = 0.5 * float(np.median(steps)) if steps.size else 1.0
+    for point, capture_s in sync_capture:
+        if point.time_utc_s is not None:
+            windows.append([(capture_s - point.time_utc_s, SYNC_TIME_ACCURACY_S)])
+            continue
+        if events.lat_deg is not None and events.lon_deg is not None:
+            lat, lon = events.lat_deg, events.lon_deg
+        elif log.positions is not None and len(log.positions) > 0:
+            lat, lon = _track_at(log, events.time_utc_s)
+        else:
+            raise InputError(f"sync position for {point.frame}: the log has no positions to compare it with")
+        near = _near_passes(_event_points(events.time_utc_s, lat, lon, point), point)
+        windows.append([(capture_s - p.time_utc_s, half_step) for p in near])
+    return windows
+
+
+def _event_points(times_s: F64, lat_deg: F64, lon_deg: F64, point: SyncPoint) -> list[_Pass]:
+    """Each event as a 'pass' at its own distance from the point, nearest first."""
+    assert point.lat_deg is not None and point.lon_deg is not None
+    frame = LocalFrame.utm_for(point.lon_deg, point.lat_deg)
+    x, y = frame.to_xy(lon_deg, lat_deg)
+    px, py = frame.to_xy(point.lon_deg, point.lat_deg)
+    d = np.hypot(x - px, y - py)
+    return [_Pass(float(times_s[k]), float(d[k]), 0.0) for k in np.argsort(d) if np.isfinite(d[k])]
+
+
+def _track_at(log: FlightLog, times_s: F64) -> tuple[F64, F64]:
+    assert log.positions is not None
+    interpolation = interpolate_poses(times_s, positions=log.positions, max_gap_s=1e9)
+    lat = np.array([np.nan if p is None else p.lat_deg for p in interpolation.poses])
+    lon = np.array([np.nan if p is None else p.lon_deg for p in interpolation.poses])
+    return lat, lon
+
+
+def _sync_offset_by_track(sync_capture: Sequence[tuple[SyncPoint, float]], log: FlightLog) -> float | None:
+    """The camera clock offset from sync points alone (no camera events): the median of the
+    offsets they give, after checking that they agree within their accuracies. A sync position
+    gives the time the track passes it; a track that passes it more than once is ambiguous."""
+    if not sync_capture:
+        return None
+    estimates: list[tuple[float, float, str]] = []  # (offset, accuracy s, what)
+    for point, capture_s in sync_capture:
+        if point.time_utc_s is not None:
+            estimates.append((capture_s - point.time_utc_s, SYNC_TIME_ACCURACY_S, f"{point.frame} time"))
+            continue
+        if log.positions is None or len(log.positions) < 2:
+            raise InputError(f"sync position for {point.frame}: the log has no track to compare it with")
+        near = _near_passes(
+            _passes(log.positions.time_utc_s, log.positions.lat_deg, log.positions.lon_deg, point), point
+        )
+        if len(near) > 1:
+            listed = ", ".join(f"{iso_utc(p.time_utc_s)} ({p.distance_m:.0f} m)" for p in near[:5])
+            raise GeotagError(
+                f"nothing written: the flight passes the sync position of {point.frame} "
+                f"{len(near)} times ({listed}); the position does not say which pass took the "
+                f"frame: give a sync time (--sync) or a position on a single pass"
+            )
+        speed = max(near[0].speed_m_s, 1.0)
+        accuracy = (near[0].distance_m + SYNC_POSITION_RADIUS_M) / speed
+        estimates.append((capture_s - near[0].time_utc_s, accuracy, f"{point.frame} position"))
+    for a in estimates:
+        for b in estimates:
+            if abs(a[0] - b[0]) > a[1] + b[1]:
+                raise InputError(
+                    f"the sync points disagree: {a[2]} gives a camera clock offset of {a[0]:+.1f} s, "
+                    f"{b[2]} {b[0]:+.1f} s; check them"
+                )
+    return float(np.median([e[0] for e in estimates]))
+
+
 def geotag_images(
     image_dir: str | os.PathLike[str],
     log: FlightLog,
     out_dir: str | os.PathLike[str],
     *,
     offset_s: float | None = None,
+    sync: Sequence[SyncPoint] = (),
     dry_run: bool = False,
     in_place: bool = False,
     backup_dir: str | os.PathLike[str] | None = None,
@@ -325,25 +623,34 @@ def geotag_images(
     progress: ProgressCallback | None = None,
     options: GeotagOptions | None = None,
 ) -> GeotagResult:
-    """Geotag every JPEG under ``image_dir`` from ``log``; results in ``out_dir``.
+    """Geotag every JPEG under ``image_dir`` (recursively) from ``log``; results in ``out_dir``.
 
     ``out_dir`` receives the tagged copies (unless ``in_place``), the sidecars (``geo.txt``,
     ``pix4d_geolocation.csv``, ``cameras.geojson``) and ``geotag_report.json``; it is built in a
-    staging folder and moved into place whole. ``offset_s``: camera clock minus UTC, seconds, if
-    known. ``in_place`` rewrites the originals, after copying each to ``backup_dir`` (required).
-    ``dry_run`` writes nothing. Frames that cannot be placed are reported, never written.
+    staging folder and moved into place whole. Names that repeat across folders are kept apart
+    (:func:`output_names`). ``offset_s``: camera clock minus UTC, seconds, if known. ``sync``:
+    frames whose time or position the crew knows, to find or check the offset. ``in_place``
+    rewrites the originals, after copying each to ``backup_dir`` (required). ``dry_run`` writes
+    nothing. Frames that cannot be placed are reported, never written.
+
+    Raises :class:`GeotagError` when the frames and events cannot be reconciled, or when their
+    alignment is ambiguous (another camera clock offset fits nearly as well) and neither
+    ``offset_s`` nor a sync point settles it: no position is written from an offset the data
+    do not pin down.
     """
     options = options or GeotagOptions()
     report = progress or (lambda done, total: None)
-    paths = list_images(image_dir)
-    if not paths:
-        raise InputError(f"no JPEG images (.jpg, .jpeg) under {image_dir}")
-    if in_place and backup_dir is None:
-        raise InputError("--in-place needs --backup-dir: the originals are copied there first")
-    if not dry_run:
-        check_output_dir(out_dir, overwrite=overwrite)
-        if not in_place and Path(out_dir).resolve() == Path(image_dir).resolve():
-            raise InputError("the output folder is the image folder; choose another -o or use --in-place")
+    root = Path(image_dir)
+    paths = prepare_images(
+        image_dir,
+        out_dir,
+        dry_run=dry_run,
+        in_place=in_place,
+        backup_dir=backup_dir,
+        overwrite=overwrite,
+        sync=sync,
+    )
+    names = output_names(image_dir, paths)
     total = 2 * len(paths)
 
     frames: list[_Frame] = []
@@ -356,10 +663,21 @@ def geotag_images(
 
     name_count: dict[str, int] = {}
     for fr in frames:
-        name_count[fr.path.name.lower()] = name_count.get(fr.path.name.lower(), 0) + 1
+        name_count[names[fr.path].lower()] = name_count.get(names[fr.path].lower(), 0) + 1
     timed = [fr for fr in frames if fr.tags is not None and fr.tags.capture_time_s is not None]
     timed.sort(key=lambda fr: (fr.tags.capture_time_s if fr.tags else 0.0, str(fr.path)))
     times = np.array([fr.tags.capture_time_s for fr in timed if fr.tags is not None], dtype=float)
+
+    # The sync frames' capture times (camera clock).
+    by_path = {fr.path: fr for fr in frames}
+    sync_capture: list[tuple[SyncPoint, float]] = []
+    for point in sync:
+        sync_frame = by_path[_resolve_sync_frame(point.frame, root, paths, names)]
+        if sync_frame.tags is None or sync_frame.tags.capture_time_s is None:
+            raise InputError(
+                f"sync frame {point.frame} has no capture time (DateTimeOriginal): choose another"
+            )
+        sync_capture.append((point, float(sync_frame.tags.capture_time_s)))
 
     warnings: list[str] = list(log.warnings)
     events = log.events if log.events is not None and len(log.events) > 0 else None
@@ -379,20 +697,34 @@ def geotag_images(
     whole_seconds = bool(times.size > 1 and np.all(np.abs(times - np.round(times)) < 1e-6))
     if whole_seconds:
         times = times + 0.5
+        sync_capture = [(point, t + 0.5) for point, t in sync_capture]
         warnings.append(
             "the capture times have whole seconds only (no SubSecTimeOriginal): matched with a "
             "wider tolerance; frames placed by time can be off by up to half a second of flight"
         )
     if events is not None and times.size:
+        windows = None if offset_s is not None else _sync_windows_with_events(sync_capture, events, log)
         matching = match_frames_to_events(
             times,
             events.time_utc_s,
             offset_s=offset_s,
             tolerance_s=options.tolerance_s,
             resolution_s=1.0 if whole_seconds else 0.0,
+            offset_windows_s=windows or (),
         )
+        if matching.ambiguous and offset_s is None:
+            raise GeotagError(
+                f"nothing written: {matching.warnings[0]}"
+                if matching.warnings
+                else "nothing written: the alignment of frames and camera events is ambiguous"
+            )
         offset = matching.offset_s
-        offset_source = OffsetSource.MATCHED if offset_s is None else OffsetSource.GIVEN
+        if offset_s is not None:
+            offset_source = OffsetSource.GIVEN
+        elif sync_capture:
+            offset_source = OffsetSource.SYNC
+        else:
+            offset_source = OffsetSource.MATCHED
         drift_ppm = matching.drift_ppm
         residual_mad = matching.residual_mad_s
         tolerance = matching.tolerance_s
@@ -401,8 +733,11 @@ def geotag_images(
     else:
         if events is None and log.events is not None:
             warnings.append("the log has no camera events: frames are placed by capture time")
+        from_sync = None if offset_s is not None else _sync_offset_by_track(sync_capture, log)
         if offset_s is not None:
             offset, offset_source = float(offset_s), OffsetSource.GIVEN
+        elif from_sync is not None:
+            offset, offset_source = from_sync, OffsetSource.SYNC
         else:
             from_gps = _offset_from_exif_gps(timed)
             if from_gps is not None:
@@ -445,10 +780,17 @@ def geotag_images(
     )
     timing_scatter = residual_mad if residual_mad is not None else 0.0
 
+    if events is None and interpolation is not None:
+        cost = _offset_cost_warning(
+            offset, offset_source, [p.speed_m_s for p in interpolation.poses if p is not None]
+        )
+        if cost is not None:
+            warnings.append(cost)
+
     for k, fr in enumerate(timed):
         assert fr.tags is not None and fr.tags.capture_time_s is not None
         base: dict[str, Any] = {
-            "name": fr.path.name,
+            "name": names[fr.path],
             "source_path": str(fr.path),
             "capture_time_s": fr.tags.capture_time_s,
             "time_utc_s": place_times[k],
@@ -518,26 +860,26 @@ def geotag_images(
     for fr in frames:
         if fr.tags is None:
             results[fr.path] = FrameResult(
-                name=fr.path.name,
+                name=names[fr.path],
                 source_path=str(fr.path),
                 status=FrameStatus.UNREADABLE,
                 message=fr.error,
             )
         elif fr.tags.capture_time_s is None:
             results[fr.path] = FrameResult(
-                name=fr.path.name,
+                name=names[fr.path],
                 source_path=str(fr.path),
                 status=FrameStatus.NO_CAPTURE_TIME,
                 message="no capture time (DateTimeOriginal) in the file: it cannot be matched or placed",
             )
-        elif name_count[fr.path.name.lower()] > 1:
+        elif name_count[names[fr.path].lower()] > 1:
             old = results[fr.path]
             results[fr.path] = FrameResult(
                 **{
                     **old.__dict__,
                     "status": FrameStatus.DUPLICATE_NAME,
-                    "message": f"another image is also named {fr.path.name} (names must be unique "
-                    f"for the sidecars); geotag the folders separately or rename",
+                    "message": f"another image also comes out as {names[fr.path]} (names must be "
+                    f"unique in the outputs); rename one of them",
                     "lat_deg": None,
                     "lon_deg": None,
                     "alt_amsl_m": None,

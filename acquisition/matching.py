@@ -50,6 +50,7 @@ event whose time pattern it shares, and frames or events left over are named.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -59,6 +60,15 @@ from .errors import GeotagError
 
 F64 = NDArray[np.float64]
 I64 = NDArray[np.int64]
+
+
+#: Alignments that lose at most this many pairs against the cheapest are refined and compared.
+CONTENDER_PAIRS = 5
+#: Chi-square margin (in units of the timing noise) the best alignment needs over one other.
+AMBIGUITY_MARGIN = 10.0
+#: Price of a frame or an event left unmatched, in the same units: -2 ln 0.05, a camera that
+#: drops or adds about one frame in twenty. A shift by one frame that loses one pair pays 12.
+UNMATCHED_COST = 6.0
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -73,7 +83,10 @@ class Matching:
     - ``offset_s``: camera clock minus UTC at ``reference_time_s`` (UTC, POSIX s);
       ``drift_ppm``: how fast that offset grows, microseconds per second (0 when not fitted).
     - ``residual_mad_s``: robust scatter of the residuals (1.4826 x median absolute deviation).
-    - ``candidates``: (offset_s, cost) of every alignment tried, best first.
+    - ``candidates``: (offset_s, cost) of every alignment tried, cheapest first.
+    - ``competitors``: (offset_s, chi-square margin, pairs) of the alignments at clearly different
+      offsets, closest first; ``margin`` the smallest (inf: none); ``ambiguous`` when it is too
+      small to trust the winner.
     """
 
     pairs: I64
@@ -87,6 +100,8 @@ class Matching:
     tolerance_s: float
     ambiguous: bool = False
     candidates: tuple[tuple[float, float], ...] = ()
+    competitors: tuple[tuple[float, float, int], ...] = ()
+    margin: float = math.inf
     warnings: tuple[str, ...] = ()
 
     def event_of_frame(self) -> dict[int, int]:
@@ -109,10 +124,21 @@ def _median_interval_s(times: F64) -> float:
     return float(np.median(steps)) if steps.size else 1.0
 
 
-def _candidate_offsets(f: F64, e: F64, tol: float, count: int = 6) -> list[float]:
-    """Offsets that many (frame, event) pairs agree on within ``tol``, densest first."""
+def _candidate_offsets(
+    f: F64, e: F64, tol: float, *, floor: int = 12, cap: int = 2000
+) -> list[tuple[float, int | None]]:
+    """Offsets that many (frame, event) pairs agree on within ``tol``, densest first: every
+    distinct offset (more than ``tol`` apart) supported by at least half as many pairs as the
+    densest, and at least the ``floor`` densest whatever their support (at most ``cap``).
+
+    A subset of a card (one DCIM folder of a long flight) fits every stretch of the flight with
+    the same rhythm about equally well: all of them are candidates, so that the alignment can
+    tell whether one of them stands out. Each comes with the number of (frame, event) pairs
+    within ``tol`` of it, an upper bound of the pairs its alignment can make (None when the
+    frames were subsampled)."""
     frames = f
-    if f.size * e.size > 4_000_000:  # enough pairs to find the peak; bounded memory
+    step = 1
+    if f.size * e.size > 4_000_000:  # enough pairs to find the peaks; bounded memory
         step = math.ceil(f.size * e.size / 4_000_000)
         frames = f[::step]
     diffs = np.sort((frames[:, None] - e[None, :]).ravel())
@@ -120,17 +146,25 @@ def _candidate_offsets(f: F64, e: F64, tol: float, count: int = 6) -> list[float
     lo = np.searchsorted(diffs, diffs - tol, side="left")
     support = hi - lo
     order = np.argsort(-support, kind="stable")
+    needed = max(2, math.ceil(0.5 * int(support[order[0]])))
     chosen: list[float] = []
+    bounds: list[int | None] = []
+    taken = np.zeros(diffs.size, dtype=bool)  # differences already inside a chosen window
     for k in order:
-        if support[k] < 2 and chosen:
+        if (support[k] < needed and len(chosen) >= floor) or len(chosen) >= cap:
             break
+        if taken[k]:
+            continue
         window = diffs[lo[k] : hi[k]]
         centre = float(np.median(window))
         if all(abs(centre - c) > tol for c in chosen):
             chosen.append(centre)
-            if len(chosen) >= count:
-                break
-    return chosen
+            taken[lo[k] : hi[k]] = True
+            inside = int(
+                np.searchsorted(diffs, centre + tol, side="right") - np.searchsorted(diffs, centre - tol)
+            )
+            bounds.append(inside if step == 1 else None)
+    return list(zip(chosen, bounds, strict=True))
 
 
 @dataclass(frozen=True)
@@ -250,6 +284,7 @@ def match_frames_to_events(
     min_match_fraction: float = 0.5,
     min_overlap_fraction: float = 0.75,
     resolution_s: float = 0.0,
+    offset_windows_s: Sequence[Sequence[tuple[float, float]]] = (),
 ) -> Matching:
     """Align frame capture times (camera clock, s) with camera event times (UTC, s).
 
@@ -261,7 +296,13 @@ def match_frames_to_events(
     :class:`GeotagError` when the sequences cannot be reconciled: fewer than
     ``min_match_fraction`` of the smaller sequence matched, fewer than ``min_overlap_fraction``
     of the smaller count within the time span both sequences cover, or residuals as scattered
-    as chance would leave them.
+    as chance would leave them. ``offset_windows_s``: the offsets to
+    consider, when ``offset_s`` is not given: one sequence of (centre, half width) per sync point;
+    an offset must fall in one window of each (within ``tol``).
+
+    ``ambiguous`` is set (and a warning names the competing offsets) when an alignment at a
+    clearly different offset fits nearly as well; callers must not place frames from it
+    without confirmation.
     """
     f_in = np.asarray(frame_times_s, dtype=float).ravel()
     e_in = np.asarray(event_times_s, dtype=float).ravel()
@@ -289,14 +330,36 @@ def match_frames_to_events(
     def align(predicted: F64, tol: float) -> _Alignment:
         return _align(f, predicted, tol, interval_tol=tol + resolution_s, max_skip=max_skip)
 
-    candidates = [float(offset_s)] if offset_s is not None else _candidate_offsets(f, e, tol)
+    candidates: list[tuple[float, int | None]] = (
+        [(float(offset_s), None)] if offset_s is not None else _candidate_offsets(f, e, tol)
+    )
+    if offset_windows_s and offset_s is None:
+
+        def allowed(c: float) -> bool:
+            return all(any(abs(c - centre) <= half + tol for centre, half in w) for w in offset_windows_s)
+
+        candidates = [c for c in candidates if allowed(c[0])]
+        if not candidates:
+            spans = "; ".join(
+                " or ".join(f"{centre - half:+.1f} to {centre + half:+.1f} s" for centre, half in w)
+                for w in offset_windows_s
+            )
+            raise GeotagError(
+                f"no alignment of the frames with the camera events puts the camera clock offset "
+                f"where the sync points say ({spans}): are the sync points right, and is the log "
+                f"from this flight?"
+            )
     tried: list[tuple[float, _Alignment]] = []
-    for offset in candidates:
-        tried.append((offset, align(e + offset, tol)))
+    cheapest = math.inf
+    for offset, most_pairs in candidates:
+        # An alignment cannot pair more than the pairs within tol of its offset: skip those
+        # that cannot come within CONTENDER_PAIRS of the cheapest so far (the cost is exact).
+        if most_pairs is not None and n + m - 2 * most_pairs > cheapest + 2.0 * CONTENDER_PAIRS:
+            continue
+        alignment = align(e + offset, tol)
+        cheapest = min(cheapest, alignment.cost)
+        tried.append((offset, alignment))
     tried.sort(key=lambda item: item[1].cost)
-    offset, best = tried[0]
-    warnings: list[str] = []
-    ambiguous = False
 
     def refine(
         pairs: list[tuple[int, int]], offset: float, drift: float, tol: float
@@ -328,39 +391,78 @@ def match_frames_to_events(
         r = np.array([f[a] - e[b] - offset - drift * (e[b] - t_ref) for a, b in pairs])
         return 1.4826 * float(np.median(np.abs(r - np.median(r))))
 
+    def chi2(chosen: list[tuple[int, int]], o: float, d: float, sigma: float) -> float:
+        """The alignment cost of the module docstring in units of the timing noise ``sigma``:
+        squared residuals, squared interval mismatches of consecutive pairs (the difference of
+        two residuals: variance 2 sigma^2), and UNMATCHED_COST per frame or event left over."""
+        r = np.array([f[a] - e[b] - o - d * (e[b] - t_ref) for a, b in chosen])
+        intervals = np.diff(r) if r.size > 1 else np.zeros(0)
+        return (
+            float(np.sum((r / sigma) ** 2) + np.sum(intervals**2) / (2.0 * sigma * sigma))
+            + UNMATCHED_COST * (n + m - 2 * len(chosen))
+        )
+
+    # Contenders: every alignment within CONTENDER_PAIRS lost pairs of the cheapest (each costs
+    # 2 gaps), refined. The winner is the best fit in units of the timing noise, not the
+    # cheapest at the first, wide tolerance (which cannot see a scatter of tens of ms).
+    best_raw = tried[0][1].cost
+    contenders: list[tuple[list[tuple[int, int]], float, float]] = []
+    for cand_offset, alignment in tried:
+        if alignment.cost > best_raw + 2.0 * CONTENDER_PAIRS or not alignment.pairs:
+            continue
+        refined = refine(alignment.pairs, cand_offset, 0.0, tol)
+        if refined[0] and all(refined[0] != c[0] for c in contenders):
+            contenders.append(refined)
+    if not contenders:
+        contenders.append(([], tried[0][0], 0.0))
+    # The timing noise: the scatter of the cheapest alignment (not the smallest scatter, which a
+    # chance alignment of a few pairs can have).
+    noise = max(scatter(*contenders[0]), 0.3 * resolution_s, 1e-3)
+    contenders.sort(key=lambda c: chi2(c[0], c[1], c[2], noise))
+    pairs, offset, drift = contenders[0]
+    warnings: list[str] = []
+    ambiguous = False
+    competitors: list[tuple[float, float, int]] = []
+    margin = math.inf
+
     wide_tol = tol
-    pairs, offset, drift = refine(best.pairs, offset, 0.0, tol)
     if tolerance_s is None and pairs:
         # Second stage: the residual scatter sets the tolerance (8 sigma, as a scatter estimated
         # from few pairs runs low; plus half the clock's resolution), so that a spurious frame
         # near an event cannot steal the event.
         tol = float(np.clip(8.0 * scatter(pairs, offset, drift) + 0.5 * resolution_s, 0.05, tol))
         pairs, offset, drift = refine(pairs, offset, drift, tol)
-    if pairs:
-        # Every other candidate, refined at the final tolerance like the winner, and all priced
-        # as a chi-square: squared residuals in units of the winner's scatter, plus 2 per item
-        # left unmatched. A margin below 10 (one lost pair costs 4) is too weak to trust.
+    if pairs and offset_s is None:
+        # Every other contender at a clearly different offset (more than the final tolerance
+        # away: it pairs other events), refined at the final tolerance like the winner and
+        # priced in units of the winner's timing noise. The data pin the offset down only when
+        # the best of them is worse by a margin that also pays for the number of alternatives
+        # (10 + 2 ln N: odds of e^5 against each of N equally likely offsets).
         sigma = max(scatter(pairs, offset, drift), 0.3 * resolution_s, 1e-3)
-
-        def chi2(chosen: list[tuple[int, int]], o: float, d: float) -> float:
-            r = np.array([f[a] - e[b] - o - d * (e[b] - t_ref) for a, b in chosen])
-            return float(np.sum((r / sigma) ** 2)) + 2.0 * (n + m - 2 * len(chosen))
-
-        own = chi2(pairs, offset, drift)
-        for other_offset, other in tried[1:]:
-            if not other.pairs:
+        own = chi2(pairs, offset, drift, sigma)
+        for other_pairs0, other_offset0, other_drift0 in contenders[1:]:
+            other_pairs, other_offset, other_drift = refine(other_pairs0, other_offset0, other_drift0, tol)
+            if not other_pairs or other_pairs == pairs or abs(other_offset - offset) <= tol:
                 continue
-            other_pairs, other_offset, other_drift = refine(other.pairs, other_offset, 0.0, tol)
-            if not other_pairs or other_pairs == pairs:
-                continue
-            if chi2(other_pairs, other_offset, other_drift) - own < 10.0:
+            delta = chi2(other_pairs, other_offset, other_drift, sigma) - own
+            competitors.append((other_offset, delta, len(other_pairs)))
+        competitors.sort(key=lambda c: c[1])
+        if competitors:
+            margin = competitors[0][1]
+            needed_margin = AMBIGUITY_MARGIN + 2.0 * math.log(len(competitors))
+            if margin < needed_margin:
                 ambiguous = True
+                close = [c for c in competitors if c[1] < needed_margin]
+                listed = ", ".join(f"{o:+.3f} s ({k} pairs, worse by {d:.1f})" for o, d, k in close[:5])
+                more = f" and {len(close) - 5} more" if len(close) > 5 else ""
                 warnings.append(
-                    f"the alignment is weakly determined: camera clock offsets {offset:+.3f} s "
-                    f"and {other_offset:+.3f} s fit almost equally well (the intervals are too "
-                    f"regular); check the first and last frames or pass --offset-s"
+                    f"the alignment is ambiguous: the camera clock offset {offset:+.3f} s "
+                    f"({len(pairs)} pairs) fits best, but {len(close)} other offset(s) fit "
+                    f"nearly as well: {listed}{more} (chi-square in units of the "
+                    f"{sigma * 1e3:.0f} ms timing noise; {needed_margin:.1f} needed). The frames' "
+                    f"rhythm repeats along the flight (a subset of a card, regular lines): confirm "
+                    f"the offset with --offset-s, or give a sync point (--sync, --sync-position)"
                 )
-                break
     spread = scatter(pairs, offset, drift)
     if pairs and spread > 0.3 * wide_tol + 0.4 * resolution_s:
         raise GeotagError(
@@ -416,5 +518,7 @@ def match_frames_to_events(
         tolerance_s=float(tol),
         ambiguous=ambiguous,
         candidates=tuple((float(o), float(a.cost)) for o, a in tried),
+        competitors=tuple(competitors),
+        margin=float(margin),
         warnings=tuple(warnings),
     )

@@ -21,9 +21,9 @@ import os
 import struct
 
 from ..errors import TelemetryError
-from .model import FlightLog
+from .model import FlightLog, ReadProgress
 
-__all__ = ["FORMATS", "FlightLog", "TelemetryError", "detect_format", "read_log"]
+__all__ = ["FORMATS", "FlightLog", "ReadProgress", "TelemetryError", "detect_format", "read_log"]
 
 #: The formats :func:`read_log` knows, with what each is.
 FORMATS: dict[str, str] = {
@@ -113,31 +113,39 @@ def detect_format(path: str | os.PathLike[str]) -> str:
     raise TelemetryError(f"{p}: not a flight log format sfap reads (known: {known})")
 
 
-def read_log(path: str | os.PathLike[str]) -> FlightLog:
+def read_log(path: str | os.PathLike[str], progress: ReadProgress | None = None) -> FlightLog:
     """Read any flight log sfap knows (see :data:`FORMATS`) into a :class:`FlightLog`: camera
     events and poses in UTC, with warnings for anything odd (a truncated file and where
-    reading stopped, a missing time reference...). Raises :class:`TelemetryError`."""
+    reading stopped, a missing time reference...). Raises :class:`TelemetryError`.
+
+    ``progress(done, total)`` is called as the file is read (bytes; the DataFlash reader
+    counts its two passes, so its total is twice the size; small formats report at the end)."""
     fmt = detect_format(path)
     if fmt == "tlog":
         from .tlog import read_tlog
 
-        return read_tlog(path)
+        return read_tlog(path, progress)
     if fmt == "dataflash":
         from .dataflash import read_dataflash
 
-        return read_dataflash(path)
+        return read_dataflash(path, progress)
     if fmt == "ulog":
         from .ulog import read_ulog
 
-        return read_ulog(path)
-    if fmt == "gpx":
+        log = read_ulog(path)
+    elif fmt == "gpx":
         from .tracks import read_gpx
 
-        return read_gpx(path)
-    if fmt == "csv":
+        log = read_gpx(path)
+    elif fmt == "csv":
         from .tracks import read_csv_track
 
-        return read_csv_track(path)
-    from .mrk import read_mrk
+        log = read_csv_track(path)
+    else:
+        from .mrk import read_mrk
 
-    return read_mrk(path)
+        log = read_mrk(path)
+    if progress is not None:
+        size = os.path.getsize(path)
+        progress(size, size)
+    return log

@@ -44,7 +44,7 @@ from numpy.typing import NDArray
 
 from ..errors import TelemetryError
 from .gpstime import BootClock, fit_boot_clock, gps_week_ms_to_utc_s, time_order
-from .model import AttitudeTrack, CameraEvents, FlightLog, PositionTrack
+from .model import PROGRESS_STEP_BYTES, AttitudeTrack, CameraEvents, FlightLog, PositionTrack, ReadProgress
 from .tlog import yaw_to_earth_deg
 
 log = logging.getLogger(__name__)
@@ -129,19 +129,32 @@ def _captured_output() -> Iterator[io.StringIO]:
             text.write(sink.read().decode("utf-8", errors="replace"))
 
 
-def _read(path: str) -> tuple[dict[str, _Columns], list[str], int, int]:
+def _read(path: str, progress: ReadProgress | None = None) -> tuple[dict[str, _Columns], list[str], int, int]:
     """Columns per wanted type, DFReader's complaints, end of the last message, file size."""
     from pymavlink import DFReader
 
     tables: dict[str, _Columns] = {}
     with _captured_output() as captured:
         try:
-            reader = DFReader.DFReader_binary(path, zero_time_base=True)
+            # Two passes: DFReader indexes the file (reported in percent), then the messages
+            # wanted are read; progress counts both, as twice the file's size.
+            size_bytes = os.path.getsize(path)
+
+            def indexed(percent: int) -> None:
+                if progress is not None:
+                    progress(size_bytes * int(percent) // 100, 2 * size_bytes)
+
+            reader = DFReader.DFReader_binary(path, zero_time_base=True, progress_callback=indexed)
         except (OSError, ValueError, KeyError, IndexError, struct.error) as exc:
             raise TelemetryError(f"{path}: not a readable DataFlash log: {exc}") from exc
         try:
             wanted = [t for t in _TYPES if t in reader.name_to_id]
+            total = int(reader.data_len)
+            next_report = 0
             while wanted:
+                if progress is not None and reader.offset >= next_report:
+                    progress(total + int(reader.offset), 2 * total)
+                    next_report = int(reader.offset) + PROGRESS_STEP_BYTES
                 msg = reader.recv_match(type=wanted)
                 if msg is None:
                     break
@@ -383,11 +396,13 @@ _SKIPPED = re.compile(r"Skipped (\d+) bad bytes in log at offset (\d+)")
 _BAD_HEADER = re.compile(r"bad header 0x[0-9a-fA-F]+(?: 0x[0-9a-fA-F]+)? at (\d+)")
 
 
-def read_dataflash(path: str | os.PathLike[str]) -> FlightLog:
+def read_dataflash(path: str | os.PathLike[str], progress: ReadProgress | None = None) -> FlightLog:
     """Read an ArduPilot DataFlash .bin log into the normalized tables (UTC times; see the
     module docstring). Raises :class:`TelemetryError` when the file is not one."""
     p = os.fspath(path)
-    tables, complaints, end, size = _read(p)
+    tables, complaints, end, size = _read(p, progress)
+    if progress is not None:
+        progress(2 * size, 2 * size)
     warnings: list[str] = []
     if end < size:
         n = sum(len(c) for c in tables.values())

@@ -6,12 +6,19 @@ time order. A column the source does not carry is ``None`` (never NaN-filled or 
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
 
 F64 = NDArray[np.float64]
+
+#: progress(bytes_read, total_bytes): called by the readers as a log is read.
+ReadProgress = Callable[[int, int], None]
+
+#: How often, in bytes, the readers report progress.
+PROGRESS_STEP_BYTES = 1 << 20
 
 
 @dataclass(frozen=True, kw_only=True)

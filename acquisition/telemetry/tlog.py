@@ -41,7 +41,7 @@ from numpy.typing import ArrayLike, NDArray
 from ..attitude import euler_deg_from_quat
 from ..errors import TelemetryError
 from .gpstime import BootClock, fit_boot_clock, gps_usec_to_utc_s, time_order
-from .model import AttitudeTrack, CameraEvents, FlightLog, PositionTrack
+from .model import PROGRESS_STEP_BYTES, AttitudeTrack, CameraEvents, FlightLog, PositionTrack, ReadProgress
 
 log = logging.getLogger(__name__)
 
@@ -129,7 +129,7 @@ def _note_boot(r: _Reading, boot_ms: float) -> None:
     r.last_boot_ms = boot_ms
 
 
-def _collect(path: str) -> _Reading:
+def _collect(path: str, progress: ReadProgress | None = None) -> _Reading:
     from pymavlink import mavutil
 
     r = _Reading(rows={name: [] for name in _WANTED})
@@ -137,8 +137,13 @@ def _collect(path: str) -> _Reading:
         conn = mavutil.mavlogfile(path, robust_parsing=True)
     except OSError as exc:
         raise TelemetryError(f"cannot open {path}: {exc}") from exc
+    total = os.path.getsize(path)
+    next_report = 0
     try:
         while True:
+            if progress is not None and r.last_good_end >= next_report:
+                progress(r.last_good_end, total)
+                next_report = r.last_good_end + PROGRESS_STEP_BYTES
             try:
                 msg = conn.recv_msg()
             except Exception as exc:  # pymavlink raises plain Exceptions on broken frames
@@ -544,14 +549,16 @@ def _gimbal(
     )
 
 
-def read_tlog(path: str | os.PathLike[str]) -> FlightLog:
+def read_tlog(path: str | os.PathLike[str], progress: ReadProgress | None = None) -> FlightLog:
     """Read a MAVLink .tlog into the normalized tables (UTC times; see the module docstring).
 
     Raises :class:`TelemetryError` when the file holds no MAVLink message at all.
     """
     p = os.fspath(path)
     size = os.path.getsize(p)
-    r = _collect(p)
+    r = _collect(p, progress)
+    if progress is not None:
+        progress(size, size)
     if r.n_messages == 0:
         raise TelemetryError(
             f"{p}: no MAVLink message could be read ({size} bytes, {r.n_bad} corrupt packets); is it a .tlog?"

@@ -612,8 +612,11 @@ def test_existing_output_needs_overwrite(
 # ============================================================================ bad input
 
 
-def test_bad_frames_are_listed_and_not_written(tmp_path: Path, flight: Flight) -> None:
-    times, _ = frame_times(flight)
+def test_bad_frames_are_listed_and_duplicate_names_kept_apart(tmp_path: Path, flight: Flight) -> None:
+    """A card's DCIM folder: the camera restarted its numbering in 101MEDIA (normal on real cards),
+    so DSC00001.JPG exists twice. Both are tagged, each with its own position, under names
+    prefixed with their folder; nothing is overwritten."""
+    times, truth = frame_times(flight)
     card = tmp_path / "card"
     write_frames(card / "100MEDIA", times[:30])
     write_frames(card / "101MEDIA", times[30:])  # the camera restarted its numbering
@@ -621,21 +624,34 @@ def test_bad_frames_are_listed_and_not_written(tmp_path: Path, flight: Flight) -
     (card / "101MEDIA" / "BROKEN.JPG").write_bytes(b"\xff\xd8\xff\xe0garbage")
     (card / "101MEDIA" / "notes.txt").write_text("not an image")
     result = geotag.geotag_images(card, flight.log, tmp_path / "out")
-    status = {(Path(f.source_path).parent.name, f.name): f for f in result.frames}
-    assert status[("101MEDIA", "NOTIME.JPG")].status is FrameStatus.NO_CAPTURE_TIME
-    broken = status[("101MEDIA", "BROKEN.JPG")]
+    status = {f.name: f for f in result.frames}
+    assert status["101MEDIA_NOTIME.JPG"].status is FrameStatus.NO_CAPTURE_TIME
+    broken = status["101MEDIA_BROKEN.JPG"]
     assert broken.status is FrameStatus.UNREADABLE and "BROKEN.JPG" in str(broken.message)
-    duplicated = {f"DSC{k + 1:05d}.JPG" for k in range(len(times) - 30)}
-    for (folder, name), frame in status.items():
-        if name in duplicated:
-            assert frame.status is FrameStatus.DUPLICATE_NAME, (folder, name)
-            assert "geotag the folders separately" in str(frame.message)
-    untagged = {f.name for f in result.untagged}
-    assert untagged == {"NOTIME.JPG", "BROKEN.JPG"} | duplicated
-    written = {p.name for p in (tmp_path / "out").iterdir()}
-    assert not (untagged & written)
-    # The matching still used every timed frame: the same events are missing.
+    assert {f.name for f in result.untagged} == {"101MEDIA_NOTIME.JPG", "101MEDIA_BROKEN.JPG"}
+    # Both DSC00001.JPG are tagged, each at its own event's position.
+    events = flight.log.events
+    assert events is not None
+    for folder, k in (("100MEDIA", 0), ("101MEDIA", 30)):
+        frame = status[f"{folder}_DSC00001.JPG"]
+        assert frame.status is FrameStatus.MATCHED and frame.event_index == truth[k]
+        assert Path(frame.source_path) == card / folder / "DSC00001.JPG"
+        assert frame.output_path == str(tmp_path / "out" / f"{folder}_DSC00001.JPG")
+    written = {p.name for p in (tmp_path / "out").iterdir() if p.suffix == ".JPG"}
+    assert len(written) == len(times)
+    geo_names = [line.split()[0] for line in (tmp_path / "out" / "geo.txt").read_text().splitlines()[1:]]
+    assert len(geo_names) == len(set(geo_names)) == len(times)
+    assert {"100MEDIA_DSC00001.JPG", "101MEDIA_DSC00001.JPG"} <= set(geo_names)
+    # The matching used every timed frame: the same events are missing.
     assert [j for j, _ in result.unmatched_events] == list(DROPPED)
+
+
+def test_unique_names_are_kept_as_they_are(tmp_path: Path, flight: Flight) -> None:
+    times, _ = frame_times(flight)
+    card = tmp_path / "card"
+    write_frames(card / "100MEDIA", times[:3])
+    paths = geotag.list_images(card)
+    assert geotag.output_names(card, paths) == {p: p.name for p in paths}
 
 
 def test_log_from_another_day(
