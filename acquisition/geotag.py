@@ -50,7 +50,7 @@ from .attitude import GimbalMode, camera_attitude_deg
 from .errors import GeotagError
 from .interpolation import InterpolatedPose, PoseInterpolation, interpolate_poses, iso_utc
 from .matching import Matching, match_frames_to_events
-from .telemetry.model import CameraEvents, FlightLog
+from .telemetry.model import CameraEvents, FlightLog, PositionTrack
 
 logger = logging.getLogger(__name__)
 
@@ -509,6 +509,17 @@ def _near_passes(passes: list[_Pass], point: SyncPoint) -> list[_Pass]:
     return [p for p in passes if p.distance_m <= passes[0].distance_m + SYNC_POSITION_RADIUS_M]
 
 
+def _track_speeds_m_s(positions: PositionTrack) -> list[float]:
+    """Ground speed between consecutive samples of a track, m/s."""
+    order = np.argsort(positions.time_utc_s, kind="stable")
+    t, lat, lon = positions.time_utc_s[order], positions.lat_deg[order], positions.lon_deg[order]
+    frame = LocalFrame.utm_for(float(np.median(lon)), float(np.median(lat)))
+    x, y = frame.to_xy(lon, lat)
+    dt = np.diff(t)
+    ok = (dt > 0) & np.isfinite(np.diff(x)) & np.isfinite(np.diff(y))
+    return (np.hypot(np.diff(x), np.diff(y))[ok] / dt[ok]).tolist()
+
+
 def _offset_cost_warning(offset: float, source: OffsetSource, speeds_m_s: Sequence[float]) -> str | None:
     """What a wrong camera clock offset costs when frames are placed by time: metres per second
     of error at the flight's ground speed."""
@@ -780,10 +791,11 @@ def geotag_images(
     )
     timing_scatter = residual_mad if residual_mad is not None else 0.0
 
-    if events is None and interpolation is not None:
-        cost = _offset_cost_warning(
-            offset, offset_source, [p.speed_m_s for p in interpolation.poses if p is not None]
-        )
+    if events is None and log.positions is not None and len(log.positions) > 1:
+        speeds = [] if interpolation is None else [p.speed_m_s for p in interpolation.poses if p is not None]
+        if not speeds:  # no frame inside the log: the flight's own ground speed
+            speeds = _track_speeds_m_s(log.positions)
+        cost = _offset_cost_warning(offset, offset_source, speeds)
         if cost is not None:
             warnings.append(cost)
 

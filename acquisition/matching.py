@@ -333,11 +333,13 @@ def match_frames_to_events(
     candidates: list[tuple[float, int | None]] = (
         [(float(offset_s), None)] if offset_s is not None else _candidate_offsets(f, e, tol)
     )
+
+    def allowed(c: float) -> bool:
+        """Inside the sync points' windows (a candidate's centre is good to a few residuals)."""
+        slack = min(tol, 0.1)
+        return all(any(abs(c - centre) <= half + slack for centre, half in w) for w in offset_windows_s)
+
     if offset_windows_s and offset_s is None:
-
-        def allowed(c: float) -> bool:
-            return all(any(abs(c - centre) <= half + tol for centre, half in w) for w in offset_windows_s)
-
         candidates = [c for c in candidates if allowed(c[0])]
         if not candidates:
             spans = "; ".join(
@@ -397,10 +399,9 @@ def match_frames_to_events(
         two residuals: variance 2 sigma^2), and UNMATCHED_COST per frame or event left over."""
         r = np.array([f[a] - e[b] - o - d * (e[b] - t_ref) for a, b in chosen])
         intervals = np.diff(r) if r.size > 1 else np.zeros(0)
-        return (
-            float(np.sum((r / sigma) ** 2) + np.sum(intervals**2) / (2.0 * sigma * sigma))
-            + UNMATCHED_COST * (n + m - 2 * len(chosen))
-        )
+        return float(
+            np.sum((r / sigma) ** 2) + np.sum(intervals**2) / (2.0 * sigma * sigma)
+        ) + UNMATCHED_COST * (n + m - 2 * len(chosen))
 
     # Contenders: every alignment within CONTENDER_PAIRS lost pairs of the cheapest (each costs
     # 2 gaps), refined. The winner is the best fit in units of the timing noise, not the
@@ -443,6 +444,8 @@ def match_frames_to_events(
         for other_pairs0, other_offset0, other_drift0 in contenders[1:]:
             other_pairs, other_offset, other_drift = refine(other_pairs0, other_offset0, other_drift0, tol)
             if not other_pairs or other_pairs == pairs or abs(other_offset - offset) <= tol:
+                continue
+            if offset_windows_s and not allowed(other_offset):
                 continue
             delta = chi2(other_pairs, other_offset, other_drift, sigma) - own
             competitors.append((other_offset, delta, len(other_pairs)))

@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import math
+import sys
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import click
@@ -10,13 +14,53 @@ from acquisition.geotag import (
     FrameStatus,
     GeotagOptions,
     GeotagResult,
+    SyncPoint,
     geotag_images,
-    list_images,
+    parse_sync_position,
+    parse_sync_time,
+    prepare_images,
     report_json,
 )
 from acquisition.telemetry import read_log
+from planner.errors import InputError
 
 from ..common import echo_table, json_option, overwrite_option, progress
+
+
+def _finite(ctx: click.Context, param: click.Parameter, value: float | None) -> float | None:
+    if value is not None and not math.isfinite(value):
+        raise click.BadParameter(f"{value} is not a finite number of seconds")
+    return value
+
+
+def _sync_points(parse: Callable[[str], SyncPoint]) -> Callable[..., tuple[SyncPoint, ...]]:
+    def callback(
+        ctx: click.Context, param: click.Parameter, values: tuple[str, ...]
+    ) -> tuple[SyncPoint, ...]:
+        try:
+            return tuple(parse(v) for v in values)
+        except InputError as error:
+            raise click.BadParameter(str(error)) from None
+
+    return callback
+
+
+@contextmanager
+def _log_progress(enabled: bool) -> Iterator[Callable[[int, int], None] | None]:
+    """A percentage bar on stderr while the log is read (the readers report bytes)."""
+    if not enabled or not sys.stderr.isatty():
+        yield None
+        return
+    with click.progressbar(length=100, label="reading log", file=sys.stderr) as bar:
+        shown = [0]
+
+        def report(done: int, total: int) -> None:
+            percent = min(100, done * 100 // total) if total > 0 else 100
+            if percent > shown[0]:
+                bar.update(percent - shown[0])
+                shown[0] = percent
+
+        yield report
 
 
 @click.command("geotag")
@@ -31,6 +75,7 @@ from ..common import echo_table, json_option, overwrite_option, progress
 @click.option(
     "-o",
     "--out",
+    "--output",
     "out_dir",
     required=True,
     type=click.Path(file_okay=False, path_type=Path),
@@ -41,8 +86,31 @@ from ..common import echo_table, json_option, overwrite_option, progress
     "--offset-s",
     type=float,
     default=None,
+    callback=_finite,
     help="Camera clock minus UTC, seconds (time zone included). Default: found by matching "
-    "frames to camera events, or from the frames' own GPS time, else 0.",
+    "frames to camera events (refused when that is ambiguous), or from sync points or the "
+    "frames' own GPS time, else assumed 0 (and said loudly).",
+)
+@click.option(
+    "--sync",
+    "sync_times",
+    multiple=True,
+    metavar="FRAME=TIME",
+    callback=_sync_points(parse_sync_time),
+    help="A frame and the UTC time it was taken (ISO 8601, e.g. "
+    "IMG_0001.JPG=2026-11-22T10:32:05.4Z, known to about 1 s: a photo of a GPS clock), to find "
+    "or check the camera clock offset. FRAME is the file name, or its path under IMAGES when "
+    "names repeat (101CANON/IMG_0001.JPG). Repeatable.",
+)
+@click.option(
+    "--sync-position",
+    "sync_positions",
+    multiple=True,
+    metavar="FRAME=LAT,LON",
+    callback=_sync_points(parse_sync_position),
+    help="A frame and the position it was taken from (WGS84 degrees, e.g. "
+    "IMG_0001.JPG=42.00123,-93.00045: the point under a nadir frame's centre), to find or check "
+    "the offset; refused when the flight passes there more than once. Repeatable.",
 )
 @click.option(
     "--tolerance-s",
@@ -80,6 +148,8 @@ def command(
     log_path: Path,
     out_dir: Path,
     offset_s: float | None,
+    sync_times: tuple[SyncPoint, ...],
+    sync_positions: tuple[SyncPoint, ...],
     tolerance_s: float | None,
     max_gap_s: float,
     dry_run: bool,
@@ -95,7 +165,19 @@ def command(
     and extra frames are found and named), placed at the event time by interpolating the
     position track (WGS84, altitude AMSL) and attitude, and written as EXIF GPS and Pix4D XMP
     tags to copies in OUT; pixel data stay byte-identical; originals are never modified
-    without --in-place. Exit code 1 when any frame is left untagged (they are listed).
+    without --in-place. Give the card's DCIM folder: its subfolders are read together, and
+    names that repeat across them (100CANON/IMG_0001.JPG, 101CANON/IMG_0001.JPG) are kept
+    apart as 100CANON_IMG_0001.JPG, 101CANON_IMG_0001.JPG in the outputs.
+
+    When the frames' rhythm fits several camera clock offsets nearly equally well (a subset
+    of a card, regular lines), nothing is written and the competing offsets are listed:
+    confirm one with --offset-s, or give a sync point. Without camera events in the log,
+    frames are placed by capture time and the cost of a wrong offset (ground speed times
+    the error) is stated.
+
+    Exit codes: 0 every frame tagged; 1 frames left untagged (listed), or the operation
+    failed (an ambiguous alignment, frames that cannot be reconciled with the log); 2 bad
+    usage or input.
 
     Example: sfap geotag card/DCIM --log flight.tlog -o tagged/
     """
@@ -103,10 +185,24 @@ def command(
         raise click.UsageError("--in-place needs --backup-dir (the originals are copied there first)")
     if backup_dir is not None and not in_place:
         raise click.UsageError("--backup-dir only applies with --in-place")
+    sync = sync_times + sync_positions
+    if sync and offset_s is not None:
+        raise click.UsageError("give either --offset-s or sync points (--sync, --sync-position), not both")
 
-    flight_log = read_log(log_path)
+    # Everything that can be checked without the log, before reading it (a log can take a while).
     options = GeotagOptions(tolerance_s=tolerance_s, max_gap_s=max_gap_s)
-    total = 2 * len(list_images(images))
+    paths = prepare_images(
+        images,
+        out_dir,
+        dry_run=dry_run,
+        in_place=in_place,
+        backup_dir=backup_dir,
+        overwrite=overwrite,
+        sync=sync,
+    )
+    with _log_progress(not no_progress and not as_json) as log_report:
+        flight_log = read_log(log_path, log_report)
+    total = 2 * len(paths)
     with progress("geotagging", total, enabled=not no_progress and not as_json) as advance:
         seen = [0]
 
@@ -119,6 +215,7 @@ def command(
             flight_log,
             out_dir,
             offset_s=offset_s,
+            sync=sync,
             dry_run=dry_run,
             in_place=in_place,
             backup_dir=backup_dir,

@@ -219,3 +219,178 @@ def test_bad_log_and_help(tmp_path: Path) -> None:
     assert code == 2
     code, stdout, _ = _run("geotag", "--help")
     assert code == 0 and "Example: sfap geotag" in stdout and "--offset-s" in stdout
+
+
+# ------------------------------------------------ subsets of a card, sync points, early checks
+
+
+def _feedback_positions() -> dict[int, tuple[float, float]]:
+    """img_idx -> (lat, lon) of every CAMERA_FEEDBACK in the tlog, read with pymavlink."""
+    from pymavlink import mavutil
+
+    conn = mavutil.mavlink_connection(str(SITL_TLOG), robust_parsing=True)
+    out: dict[int, tuple[float, float]] = {}
+    try:
+        while (m := conn.recv_match(type="CAMERA_FEEDBACK")) is not None:
+            out.setdefault(int(m.img_idx), (m.lat * 1e-7, m.lng * 1e-7))
+    finally:
+        conn.close()
+    return out
+
+
+def _metres(a: tuple[float, float], b: tuple[float, float]) -> float:
+    north = (a[0] - b[0]) * 111_195.0
+    east = (a[1] - b[1]) * 111_195.0 * math.cos(math.radians(a[0]))
+    return math.hypot(north, east)
+
+
+@pytest.fixture
+def subset_card(tmp_path: Path, sitl_log: FlightLog) -> tuple[Path, list[int]]:
+    """One DCIM subfolder of the card: 15 frames of the 70 events (22 to 36), in 101CANON."""
+    events = sitl_log.events
+    assert events is not None
+    jitter = np.random.default_rng(8).normal(0, 0.03, len(events))
+    chosen = list(range(22, 37))
+    for k, j in enumerate(chosen):
+        write_frame(
+            tmp_path / "DCIM" / "101CANON" / f"IMG_{k + 1:04d}.JPG",
+            float(events.time_utc_s[j] + OFFSET_S + jitter[j]),
+        )
+    return tmp_path / "DCIM", chosen
+
+
+def test_a_subset_of_a_card_is_refused_until_the_offset_is_confirmed(
+    tmp_path: Path, subset_card: tuple[Path, list[int]], sitl_log: FlightLog
+) -> None:
+    """The SITL plane fires every 2.2 s all flight long: 15 frames fit many stretches of it.
+    Nothing is written, the competing offsets are named, exit 1; then each way the crew can
+    settle it places every frame on its own event (positions from pymavlink's CAMERA_FEEDBACK)."""
+    card, chosen = subset_card
+    out = tmp_path / "out"
+    code, _, stderr = _run("geotag", card, "--log", SITL_TLOG, "-o", out)
+    assert code == 1, stderr
+    assert "ambiguous" in stderr and "other offset(s) fit nearly as well" in stderr
+    assert "--offset-s" in stderr and "--sync" in stderr
+    assert not out.exists()
+
+    truth = _feedback_positions()
+    events = sitl_log.events
+    assert events is not None
+    first = float(events.time_utc_s[chosen[0]])
+    first_pos = truth[int(events.seq[chosen[0]])]
+    settle = {
+        "offset": ["--offset-s", str(OFFSET_S)],
+        "sync_time": [
+            "--sync",
+            f"101CANON/IMG_0001.JPG={datetime.fromtimestamp(first + 0.4, tz=UTC).isoformat()}",
+        ],
+        "sync_position": ["--sync-position", f"IMG_0001.JPG={first_pos[0] + 3e-5:.7f},{first_pos[1]:.7f}"],
+    }
+    for how, args in settle.items():
+        target = tmp_path / f"out_{how}"
+        code, stdout, stderr = _run("geotag", card, "--log", SITL_TLOG, "-o", target, "--json", *args)
+        assert code == 0, (how, stderr)
+        report = json.loads(stdout)
+        assert report["summary"]["offset_source"] == ("given" if how == "offset" else "sync")
+        frames = sorted(report["frames"], key=lambda f: f["name"])
+        assert [f["status"] for f in frames] == ["matched"] * len(chosen)
+        for k, frame in enumerate(frames):
+            expected = truth[int(events.seq[chosen[k]])]
+            assert _metres((frame["lat_deg"], frame["lon_deg"]), expected) < 1.0, (how, k)
+
+
+def test_sync_points_bad_input_exit_2(tmp_path: Path, subset_card: tuple[Path, list[int]]) -> None:
+    card, _ = subset_card
+    out = tmp_path / "out"
+    cases = [
+        (["--sync", "IMG_0001.JPG"], "FRAME=TIME"),
+        (["--sync", "IMG_0001.JPG=yesterday"], "not an ISO 8601 time"),
+        (["--sync-position", "IMG_0001.JPG=42.0"], "FRAME=LAT,LON"),
+        (["--sync-position", "IMG_0001.JPG=142.0,-93"], "not a latitude"),
+        (["--sync", "NOPE.JPG=2026-11-22T10:00:00Z"], "NOPE.JPG is not an image"),
+        (["--sync", "IMG_0001.JPG=2026-11-22T10:00:00Z", "--offset-s", "3"], "either --offset-s or sync"),
+        (["--offset-s", "nan"], "not a finite number"),
+        (["--sync-position", "IMG_0001.JPG=10.0,10.0"], "not on the flight"),
+    ]
+    for args, message in cases:
+        code, _, stderr = _run("geotag", card, "--log", SITL_TLOG, "-o", out, *args)
+        assert code == 2, (args, stderr)
+        assert message in stderr, (args, stderr)
+        assert "Traceback" not in stderr
+    assert not out.exists()
+
+
+def test_folder_and_options_are_checked_before_the_log_is_read(tmp_path: Path) -> None:
+    """An empty folder (or a bad option) is refused at once: the log, here not even a log, is
+    not read first."""
+    garbage = tmp_path / "flight.tlog"
+    garbage.write_bytes(b"this is not a flight log" * 1000)
+    (tmp_path / "DCIM" / "100CANON").mkdir(parents=True)
+    code, _, stderr = _run("geotag", tmp_path / "DCIM", "--log", garbage, "-o", tmp_path / "out")
+    assert code == 2 and "no JPEG images" in stderr and "flight.tlog" not in stderr
+    write_frame(tmp_path / "DCIM" / "100CANON" / "A.JPG", 1.7e9)
+    for args, message in ((["--tolerance-s", "0"], "tolerance"), (["--max-gap-s", "-1"], "max gap")):
+        code, _, stderr = _run("geotag", tmp_path / "DCIM", "--log", garbage, "-o", tmp_path / "out", *args)
+        assert code == 2 and message in stderr and "flight.tlog" not in stderr, stderr
+    (tmp_path / "out").mkdir()
+    (tmp_path / "out" / "old.txt").write_text("keep")
+    code, _, stderr = _run("geotag", tmp_path / "DCIM", "--log", garbage, "-o", tmp_path / "out")
+    assert code == 2 and "--overwrite" in stderr and "flight.tlog" not in stderr
+
+
+def test_by_time_says_what_a_wrong_offset_costs_and_takes_a_sync_position(
+    tmp_path: Path, sitl_log: FlightLog
+) -> None:
+    """A CSV track has no camera events: frames are placed by capture time. The warning gives
+    the metres per second of clock error at the flight's ground speed (checked against the
+    track's own median speed); a sync position finds the offset."""
+    track = _csv_track(tmp_path / "track.csv", sitl_log)
+    positions = sitl_log.positions
+    events = sitl_log.events
+    assert positions is not None and events is not None
+    for k, j in enumerate(range(20, 30)):
+        write_frame(tmp_path / "card" / f"F{k}.JPG", float(events.time_utc_s[j] + OFFSET_S))
+    code, _, stderr = _run("geotag", tmp_path / "card", "--log", track, "-o", tmp_path / "a", "--dry-run")
+    assert "ASSUMED to be 0 s" in stderr
+    # The speed, from the track's positions during those frames, written out here.
+    lat, lon, t = positions.lat_deg, positions.lon_deg, positions.time_utc_s
+    inside = (t > events.time_utc_s[20] - 5) & (t < events.time_utc_s[29] + 5)
+    steps = [
+        _metres((lat[i], lon[i]), (lat[i + 1], lon[i + 1])) / (t[i + 1] - t[i])
+        for i in np.flatnonzero(inside)[:-1]
+    ]
+    speed = float(np.median(steps))
+    code, stdout, stderr = _run(
+        "geotag",
+        tmp_path / "card",
+        "--log",
+        track,
+        "-o",
+        tmp_path / "b",
+        "--dry-run",
+        "--offset-s",
+        str(OFFSET_S),
+    )
+    assert code == 0, stderr
+    stated = float(stderr.split("every second it is wrong moves each frame about ")[1].split(" m")[0])
+    assert stated == pytest.approx(speed, rel=0.1)
+    truth = _feedback_positions()
+    known = truth[int(events.seq[20])]
+    code, stdout, stderr = _run(
+        "geotag",
+        tmp_path / "card",
+        "--log",
+        track,
+        "-o",
+        tmp_path / "c",
+        "--json",
+        "--sync-position",
+        f"F0.JPG={known[0]:.7f},{known[1]:.7f}",
+    )
+    assert code == 0, stderr
+    report = json.loads(stdout)
+    assert report["summary"]["offset_source"] == "sync"
+    assert report["summary"]["offset_s"] == pytest.approx(OFFSET_S, abs=0.3)
+    for frame in report["frames"]:
+        k = int(frame["name"][1:-4])
+        assert _metres((frame["lat_deg"], frame["lon_deg"]), truth[int(events.seq[20 + k])]) < 5.0
