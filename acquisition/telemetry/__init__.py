@@ -10,13 +10,15 @@ format        recognised by                                               reader
 ``tlog``      8-byte big-endian receive time (microseconds, 2001-2100)     :mod:`.tlog`
               followed by a MAVLink 1 (0xFE) or 2 (0xFD) frame
 ``gpx``       a ``<gpx`` element                                          :mod:`.tracks`
-``csv``       a header row with GPSLatitude and GPSDateTime/GPSDateStamp  :mod:`.tracks`
+``csv``       a header row of a GPS track layout (exiftool's: GPSLatitude  :mod:`.tracks`
+              and GPSDateTime; an autopilot's GPS export: CSV_LAYOUTS)
 ``mrk``       a DJI ``photo tow [week] n,N`` line                         :mod:`.mrk`
 ============  ==========================================================  =====================
 """
 
 from __future__ import annotations
 
+import csv
 import os
 import struct
 
@@ -30,7 +32,7 @@ FORMATS: dict[str, str] = {
     "tlog": "MAVLink telemetry log (.tlog)",
     "dataflash": "ArduPilot DataFlash log (.bin)",
     "ulog": "PX4 ULog (.ulg)",
-    "csv": "ExifTool CSV track (.csv)",
+    "csv": "CSV track (.csv): exiftool's layout, or an ArduPilot/PX4 GPS export",
     "gpx": "GPX track (.gpx)",
     "mrk": "DJI RTK photo events (.MRK)",
 }
@@ -82,7 +84,7 @@ def detect_format(path: str | os.PathLike[str]) -> str:
     Raises :class:`TelemetryError` naming the file and the formats known when it is none.
     """
     from .mrk import MRK_SIGNATURE
-    from .tracks import normalize_heading
+    from .tracks import csv_layout_message, is_csv_track
 
     p = os.fspath(path)
     try:
@@ -104,11 +106,14 @@ def detect_format(path: str | os.PathLike[str]) -> str:
     lines = [line for line in text.splitlines() if line.strip()]
     if lines:
         first = lines[0]
-        names = {normalize_heading(h) for h in first.replace(";", ",").split(",")}
-        if "gpslatitude" in names and names & {"gpsdatetime", "gpsdatestamp"}:
+        header = next(csv.reader([first.replace(";", ",")]), [])
+        if is_csv_track(header):
             return "csv"
         if MRK_SIGNATURE.match(first):
             return "mrk"
+        printable = all(c.isprintable() or c in "\t\r\n" for c in text[:4096])
+        if printable and len([h for h in header if h.strip()]) >= 2:
+            raise TelemetryError(csv_layout_message(p, header))
     known = "; ".join(f"{k}: {v}" for k, v in FORMATS.items())
     raise TelemetryError(f"{p}: not a flight log format sfap reads (known: {known})")
 

@@ -14,6 +14,13 @@ descriptions, optionally with a group prefix (``GPS:GPSLatitude``, ``GPS Latitud
   ``GPSImgDirection`` (yaw, degrees true), ``GPSPitch`` or ``CameraElevationAngle``,
   ``GPSRoll``; other columns are ignored, as exiftool does.
 
+Autopilot GPS exports (:data:`CSV_LAYOUTS`): ArduPilot GPS messages as CSV (``mavlogdump.py
+--format csv --types GPS``: TimeUS, Status, GMS, GWk, NSats, HDop, Lat, Lng, Alt...; time from
+GWk and GMS), PX4 ``vehicle_gps_position`` or ``sensor_gps`` from ``ulog2csv`` (time_utc_usec,
+lat/lon in 1e-7 degrees and alt in mm, or latitude_deg, longitude_deg, altitude_msl_m), and a
+plain UTC time with lat, lon, alt. A CSV in none of these is refused with the columns looked
+for and the ones found.
+
 GPX 1.1 (and 1.0): every ``trk/trkseg/trkpt`` with its ``lat``, ``lon`` attributes, ``ele``
 (metres, taken as AMSL) and ``time`` (ISO 8601, UTC when no offset is given).
 
@@ -35,7 +42,7 @@ from xml.parsers import expat
 import numpy as np
 
 from ..errors import TelemetryError
-from .gpstime import time_order
+from .gpstime import gps_week_ms_to_utc_s, time_order
 from .model import AttitudeTrack, FlightLog, PositionTrack
 
 log = logging.getLogger(__name__)
@@ -134,7 +141,8 @@ def _csv_rows(text: str) -> Iterator[tuple[int, list[str]]]:
 
 
 def read_csv_track(path: str | os.PathLike[str]) -> FlightLog:
-    """Read an ExifTool CSV track log (see the module docstring)."""
+    """Read a CSV track: exiftool's layout (see the module docstring) or an autopilot's GPS
+    export (:data:`CSV_LAYOUTS`)."""
     p = os.fspath(path)
     try:
         with open(p, encoding="utf-8-sig", newline="") as f:
@@ -150,6 +158,8 @@ def read_csv_track(path: str | os.PathLike[str]) -> FlightLog:
         raise TelemetryError(f"{p}, line 1: {exc}") from exc
     names = [normalize_heading(h) for h in header]
     index = {n: i for i, n in enumerate(names) if n}
+    if "gpslatitude" not in index and _layout_of(header) is not None:
+        return read_autopilot_csv(p, text, header)
     has_datetime = "gpsdatetime" in index
     has_split = "gpsdatestamp" in index and "gpstimestamp" in index
     missing = [c for c in CSV_REQUIRED if c not in index]
@@ -158,7 +168,8 @@ def read_csv_track(path: str | os.PathLike[str]) -> FlightLog:
         need += [{"gpslatitude": "GPSLatitude", "gpslongitude": "GPSLongitude"}[c] for c in missing]
         raise TelemetryError(
             f"{p}, line {header_line}: the header lacks {', '.join(need)}; found "
-            f"{', '.join(h.strip() for h in header) or 'nothing'} (exiftool's CSV track layout)"
+            f"{', '.join(h.strip() for h in header) or 'nothing'} (exiftool's CSV track layout; "
+            f"also read: {'; '.join(layout.describe for layout in CSV_LAYOUTS)})"
         )
     optional = {
         "alt": "gpsaltitude",
@@ -376,3 +387,214 @@ def read_gpx(path: str | os.PathLike[str]) -> FlightLog:
         ),
         warnings=tuple(warnings),
     )
+
+
+# ------------------------------------------------------------- autopilot GPS exports as CSV
+
+
+@dataclass(frozen=True)
+class CsvLayout:
+    """A CSV layout of GPS fixes, by normalized column names (:func:`normalize_heading`)."""
+
+    name: str
+    time: tuple[str, ...]  # the columns that give the time, all required
+    lat: str
+    lon: str
+    alt: str | None
+    describe: str
+
+
+#: The autopilot GPS exports read, first match wins (after exiftool's own layout).
+CSV_LAYOUTS = (
+    CsvLayout(
+        "ardupilot_gps",
+        ("gwk", "gms"),
+        "lat",
+        "lng",
+        "alt",
+        "ArduPilot GPS messages (mavlogdump.py --format csv --types GPS, Mission Planner): GWk and "
+        "GMS (GPS week, ms of week), Lat, Lng (degrees), Alt (m AMSL)",
+    ),
+    CsvLayout(
+        "px4_sensor_gps",
+        ("timeutcusec",),
+        "latitudedeg",
+        "longitudedeg",
+        "altitudemslm",
+        "PX4 sensor_gps (ulog2csv, PX4 1.14+): time_utc_usec, latitude_deg, longitude_deg, altitude_msl_m",
+    ),
+    CsvLayout(
+        "px4_vehicle_gps_position",
+        ("timeutcusec",),
+        "lat",
+        "lon",
+        "alt",
+        "PX4 vehicle_gps_position (ulog2csv): time_utc_usec (UTC us), lat, lon (1e-7 deg), alt (mm AMSL)",
+    ),
+    CsvLayout(
+        "utc",
+        ("timeutc",),
+        "lat",
+        "lon",
+        "alt",
+        "a UTC time (time_utc, utc, datetime, time: ISO 8601 or POSIX seconds) with lat or latitude, "
+        "lon, lng or longitude (degrees) and optionally alt or altitude (m AMSL)",
+    ),
+    CsvLayout(
+        "gps_week",
+        ("gpsweek", "gpsms"),
+        "lat",
+        "lon",
+        "alt",
+        "GPS time as gps_week and gps_ms (ms of week) with lat, lon, alt",
+    ),
+)
+
+# Other spellings of the generic columns, normalized.
+_ALIASES = {
+    "latitude": "lat",
+    "lng": "lon",
+    "long": "lon",
+    "longitude": "lon",
+    "altitude": "alt",
+    "altamsl": "alt",
+    "altitudemsl": "alt",
+    "utc": "timeutc",
+    "utctime": "timeutc",
+    "datetime": "timeutc",
+    "time": "timeutc",
+    "gpstow": "gpsms",
+    "towms": "gpsms",
+    "week": "gpsweek",
+}
+
+EXIFTOOL_LAYOUT = (
+    "exiftool's CSV track: GPSDateTime (or GPSDateStamp and GPSTimeStamp), GPSLatitude, GPSLongitude"
+)
+
+
+def _layout_of(header: list[str]) -> tuple[CsvLayout, dict[str, int]] | None:
+    """The first layout whose columns the header has, and each column's index."""
+    names = [normalize_heading(h) for h in header]
+    exact = {n: i for i, n in enumerate(names) if n}
+    for layout in CSV_LAYOUTS:
+        index = dict(exact)
+        if layout.name in ("utc", "gps_week"):
+            for i, n in enumerate(names):
+                if n in _ALIASES and _ALIASES[n] not in index:
+                    index[_ALIASES[n]] = i
+        needed = (*layout.time, layout.lat, layout.lon)
+        if all(c in index for c in needed):
+            return layout, index
+    return None
+
+
+def csv_layout_message(path: str, header: list[str]) -> str:
+    """What a CSV that is no track layout sfap reads is told: the columns looked for, and found."""
+    found = ", ".join(h.strip() for h in header if h.strip()) or "nothing"
+    looked = "; ".join([EXIFTOOL_LAYOUT] + [layout.describe for layout in CSV_LAYOUTS])
+    return f"{path}: not a GPS track layout sfap reads. Columns found: {found}. Looked for: {looked}"
+
+
+def is_csv_track(header: list[str]) -> bool:
+    names = {normalize_heading(h) for h in header}
+    exiftool = "gpslatitude" in names and bool(names & {"gpsdatetime", "gpsdatestamp"})
+    return exiftool or _layout_of(header) is not None
+
+
+def _utc_cell(text: str) -> float:
+    """ISO 8601 / EXIF date-time (UTC unless a zone is given), or POSIX seconds."""
+    value = text.strip()
+    if re.fullmatch(r"[-+]?\d+(\.\d*)?", value):
+        seconds = float(value)
+        if not 946_684_800.0 <= seconds <= 4_102_444_800.0:  # 2000-01-01 .. 2100-01-01
+            raise ValueError("not a POSIX time in seconds between 2000 and 2100")
+        return seconds
+    try:
+        return parse_exif_datetime(value)
+    except ValueError:
+        return _parse_iso_time(value)
+
+
+def read_autopilot_csv(path: str, text: str, header: list[str]) -> FlightLog:
+    """GPS fixes in one of :data:`CSV_LAYOUTS`. Rows without a fix (ArduPilot Status < 3, PX4
+    time_utc_usec 0, a 0, 0 position) are skipped and counted."""
+    found = _layout_of(header)
+    if found is None:
+        raise TelemetryError(csv_layout_message(path, header))
+    layout, index = found
+    rows = _csv_rows(text)
+    next(rows)
+    times: list[float] = []
+    lats: list[float] = []
+    lons: list[float] = []
+    alts: list[float] = []
+    has_alt = layout.alt is not None and layout.alt in index
+    status_col = index.get("status") if layout.name == "ardupilot_gps" else None
+    skipped = 0
+    line = 1
+    try:
+        for line, row in rows:
+            if not any(c.strip() for c in row):
+                continue
+
+            def cell(name: str, row: list[str] = row) -> str:
+                i = index[name]
+                return row[i].strip() if i < len(row) else ""
+
+            column = layout.time[0]
+            try:
+                if status_col is not None and status_col < len(row) and float(row[status_col]) < 3:
+                    skipped += 1
+                    continue
+                if layout.name == "ardupilot_gps":
+                    t = float(gps_week_ms_to_utc_s(float(cell("gwk")), float(cell("gms"))))
+                elif layout.name == "gps_week":
+                    t = float(gps_week_ms_to_utc_s(float(cell("gpsweek")), float(cell("gpsms"))))
+                elif layout.name.startswith("px4"):
+                    usec = float(cell("timeutcusec"))
+                    if usec <= 0:
+                        skipped += 1
+                        continue
+                    t = usec / 1e6
+                else:
+                    t = _utc_cell(cell("timeutc"))
+                column = layout.lat
+                lat, lon = float(cell(layout.lat)), float(cell(layout.lon))
+                if layout.name == "px4_vehicle_gps_position":
+                    lat, lon = lat * 1e-7, lon * 1e-7
+                if lat == 0.0 and lon == 0.0:
+                    skipped += 1
+                    continue
+                if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0):
+                    raise ValueError(f"{lat}, {lon} is outside -90..90 / -180..180 degrees")
+                if has_alt and layout.alt is not None:
+                    column = layout.alt
+                    alt = float(cell(layout.alt))
+                    alts.append(alt * 1e-3 if layout.name == "px4_vehicle_gps_position" else alt)
+            except ValueError as exc:
+                raise TelemetryError(f"{path}, line {line}: {column}: {exc}") from None
+            times.append(t)
+            lats.append(lat)
+            lons.append(lon)
+    except csv.Error as exc:
+        raise TelemetryError(f"{path}, line {line + 1}: {exc}") from exc
+    if not times:
+        raise TelemetryError(f"{path}: no GPS fix in the file ({skipped} rows without one)")
+    warnings: list[str] = []
+    if skipped:
+        warnings.append(f"{path}: {skipped} rows without a GPS fix skipped")
+    t_arr = np.array(times, dtype=np.float64)
+    o = time_order(t_arr)
+    if len(o) < len(t_arr):
+        warnings.append(f"{path}: {len(t_arr) - len(o)} rows with a repeated time dropped")
+    for w in warnings:
+        log.warning("%s", w)
+    positions = PositionTrack(
+        time_utc_s=t_arr[o],
+        lat_deg=np.array(lats)[o],
+        lon_deg=np.array(lons)[o],
+        alt_amsl_m=np.array(alts)[o] if has_alt else None,
+        source=f"csv:{layout.name}",
+    )
+    return FlightLog(path=path, format="csv", positions=positions, warnings=tuple(warnings))

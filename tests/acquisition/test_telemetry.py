@@ -878,3 +878,121 @@ def test_tlog_positions_start_at_the_first_gps_fix() -> None:
     assert log.positions is not None
     near_null_island = (np.abs(log.positions.lat_deg) < 1.0) & (np.abs(log.positions.lon_deg) < 1.0)
     assert not near_null_island.any()
+
+
+# ---------------------------------------------------------------- autopilot GPS exports as CSV
+
+
+@needs_real
+def test_ardupilot_gps_csv_from_mavlogdump(tmp_path: Path, dataflash: FlightLog) -> None:
+    """The real tool's output: pymavlink's mavlogdump.py --format csv --types GPS of the SITL
+    BIN. Times come from GWk/GMS (checked against the datetime module and 18 leap seconds),
+    positions lie on the BIN's own POS track (within the receiver's lag)."""
+    import subprocess
+    import sys
+
+    script = Path(sys.executable).parent / "mavlogdump.py"
+    dump = subprocess.run(
+        [sys.executable, str(script), "--format", "csv", "--types", "GPS", str(BIN)],
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=300,
+    )
+    (tmp_path / "gps.csv").write_text(dump.stdout)
+    header = dump.stdout.splitlines()[0].split(",")
+    assert {"TimeUS", "Status", "GMS", "GWk", "NSats", "HDop", "Lat", "Lng", "Alt"} <= set(header)
+    log = read_log(tmp_path / "gps.csv")
+    assert log.format == "csv" and log.positions is not None
+    assert log.positions.source == "csv:ardupilot_gps" and log.positions.alt_amsl_m is not None
+    rows = [line.split(",") for line in dump.stdout.splitlines()[1:]]
+    week, ms = header.index("GWk"), header.index("GMS")
+    expected = sorted(
+        (
+            dt.datetime(1980, 1, 6, tzinfo=dt.UTC) + dt.timedelta(weeks=int(r[week]), milliseconds=int(r[ms]))
+        ).timestamp()
+        - 18
+        for r in rows
+    )
+    _close(log.positions.time_utc_s, np.unique(expected), atol=1e-6)
+    pos = dataflash.positions
+    assert pos is not None
+    inside = (log.positions.time_utc_s > pos.time_utc_s[0]) & (log.positions.time_utc_s < pos.time_utc_s[-1])
+    lat = np.interp(log.positions.time_utc_s, pos.time_utc_s, pos.lat_deg)
+    lon = np.interp(log.positions.time_utc_s, pos.time_utc_s, pos.lon_deg)
+    distance = _metres(lat, lon, log.positions.lat_deg, log.positions.lon_deg)[inside]
+    # The GPS fix lags the EKF's POS (SITL's simulated receiver delay) by a few metres at 20 m/s.
+    assert np.median(distance) < 5.0 and inside.sum() > 100
+
+
+def test_px4_gps_csv_from_ulog2csv(tmp_path: Path) -> None:
+    """pyulog's ulog2csv of the PX4 fixture: vehicle_gps_position with lat, lon in 1e-7 deg and
+    alt in mm, time from time_utc_usec; compared with the fixture generator's truth."""
+    import subprocess
+    import sys
+
+    script = Path(sys.executable).parent / "ulog2csv"
+    subprocess.run(
+        [str(script), "-o", str(tmp_path), "-m", "vehicle_gps_position", str(DATA / "px4_survey.ulg")],
+        capture_output=True,
+        check=True,
+        timeout=120,
+    )
+    csv_path = tmp_path / "px4_survey_vehicle_gps_position_0.csv"
+    log = read_log(csv_path)
+    assert log.positions is not None and log.positions.source == "csv:px4_vehicle_gps_position"
+    gen = _ulog_fixture_module()
+    boot = np.array([float(line.split(",")[0]) / 1e6 for line in csv_path.read_text().splitlines()[1:]])
+    truth = np.array([gen.position(t) for t in boot])
+    _close(log.positions.time_utc_s, gen.UTC0_S + gen.RATE * boot, atol=1e-5)
+    _close(log.positions.lat_deg, truth[:, 0], atol=1e-7)
+    _close(log.positions.lon_deg, truth[:, 1], atol=1e-7)
+    assert log.positions.alt_amsl_m is not None
+    _close(log.positions.alt_amsl_m, truth[:, 2], atol=1e-3)
+
+
+def test_newer_px4_and_plain_utc_csv(tmp_path: Path) -> None:
+    (tmp_path / "sensor_gps.csv").write_text(
+        "timestamp,time_utc_usec,latitude_deg,longitude_deg,altitude_msl_m,fix_type\n"
+        "5000000,0,0,0,0,0\n"  # before the fix: skipped
+        "5200000,1700000005200000,47.1234567,8.7654321,512.5,3\n"
+        "5400000,1700000005400000,47.1234667,8.7654321,512.6,3\n"
+    )
+    log = read_log(tmp_path / "sensor_gps.csv")
+    assert log.positions is not None and log.positions.source == "csv:px4_sensor_gps"
+    _close(log.positions.time_utc_s, [1_700_000_005.2, 1_700_000_005.4], atol=1e-6)
+    _close(log.positions.lat_deg, [47.1234567, 47.1234667], atol=1e-9)
+    assert any("1 rows without a GPS fix" in w for w in log.warnings)
+    (tmp_path / "plain.csv").write_text(
+        "time_utc,latitude,longitude,altitude\n2023-11-14T22:13:20.5Z,-35.5,149.25,600\n"
+        "2023-11-14T22:13:21.5Z,-35.50001,149.25,601\n"
+    )
+    log = read_log(tmp_path / "plain.csv")
+    assert log.positions is not None and log.positions.alt_amsl_m is not None
+    _close(log.positions.time_utc_s, [1_700_000_000.5, 1_700_000_001.5], atol=1e-6)
+    _close(log.positions.lat_deg, [-35.5, -35.50001], atol=1e-12)
+
+
+def test_a_csv_in_no_known_layout_names_what_it_looked_for_and_found(tmp_path: Path) -> None:
+    (tmp_path / "mystery.csv").write_text("when,north,east,height\n1,2,3,4\n")
+    with pytest.raises(TelemetryError) as caught:
+        read_log(tmp_path / "mystery.csv")
+    message = str(caught.value)
+    assert "Columns found: when, north, east, height" in message
+    for looked in ("GPSDateTime", "GWk and GMS", "time_utc_usec", "latitude_deg", "time_utc"):
+        assert looked in message
+
+
+@needs_real
+@pytest.mark.parametrize("path", [TLOG, BIN], ids=["tlog", "dataflash"])
+def test_readers_report_progress_by_bytes(path: Path) -> None:
+    """Progress while a log is read: (done, total) calls that never go back and end at the
+    total, with intermediate steps on a file of more than a megabyte."""
+    calls: list[tuple[int, int]] = []
+    read_log(path, lambda done, total: calls.append((done, total)))
+    done = [d for d, _ in calls]
+    totals = {t for _, t in calls}
+    assert len(totals) == 1 and done == sorted(done)
+    (total,) = totals
+    assert done[-1] == total and total >= path.stat().st_size
+    assert len([d for d in done if 0 < d < total]) >= 1
