@@ -10,6 +10,11 @@ of a virtual airframe whose downward-looking camera would point like the real on
 to the airframe looking down therefore carries the vehicle's own yaw (clockwise from north,
 0-360), pitch (nose up positive) and roll (right wing down positive); a level, nadir camera has
 pitch 0, roll 0.
+
+Gimbal lock. A gimbal looking straight down has Euler pitch -90, where yaw and roll turn about
+the same axis and only their sum is defined: :func:`euler_deg_from_quat` then gives roll 0 and
+the whole turn as yaw (the heading of the image top), and vehicle and gimbal are combined and
+interpolated as quaternions, never through Euler angles in between.
 """
 
 from __future__ import annotations

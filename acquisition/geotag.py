@@ -12,11 +12,21 @@ A matched frame is placed at its *event* time (the autopilot's clock, not the ca
 position track is interpolated there in a local metric frame (UTM of the flight,
 :class:`planner.geo.LocalFrame`), attitude by spherical linear interpolation of quaternions; the
 camera attitude combines vehicle and gimbal when the log has gimbal attitude. Without camera
-events every frame is placed at its capture time corrected by the offset (given, or from the
-frames' own EXIF GPS time, else zero). A frame without an event is placed at its corrected capture
+events every frame is placed at its capture time corrected by the offset (given, from the
+crew's sync points, or from the frames' own EXIF GPS time, else zero, said loudly with what a
+wrong offset costs in metres). A frame without an event is placed at its corrected capture
 time when the track covers it, and listed. Frames that cannot be placed (no capture time,
-unreadable, outside the log, a gap in the track longer than ``max_gap_s``, duplicate name) are
-listed with the reason, never guessed, and nothing is written for them.
+unreadable, outside the log, a gap in the track longer than ``max_gap_s``) are listed with the
+reason, never guessed, and nothing is written for them.
+
+Never from an offset the data do not pin down: when another camera clock offset aligns the
+frames with the events nearly as well (a subset of a card, regular lines; see
+:mod:`acquisition.matching`), :func:`geotag_images` raises :class:`GeotagError` naming the
+competing offsets, unless ``offset_s`` or a sync point (:class:`SyncPoint`: a frame's known
+UTC time, or its known position) settles it.
+
+Cards: the image folder is read recursively (a DCIM folder with 100CANON, 101CANON...); names
+that repeat across folders are kept apart by :func:`output_names` (``100CANON_IMG_0001.JPG``).
 
 Camera attitude is written as Pix4D ``Camera:Yaw/Pitch/Roll`` in the convention of
 :mod:`acquisition.attitude` (a camera fixed to the airframe looking down carries the vehicle's

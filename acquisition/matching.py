@@ -14,8 +14,11 @@ event whose time pattern it shares, and frames or events left over are named.
 
 1. Candidate offsets. Every difference ``f_i - e_j`` is a possible offset; the true one is the
    value that many pairs agree on within the matching tolerance ``tol`` (default 35 % of the
-   median event interval, 0.05-2 s). The densest windows of the sorted differences give up to
-   six distinct candidates (a given ``--offset-s`` is the only candidate).
+   median event interval, 0.05-2 s). Every distinct window of the sorted differences holding at
+   least half as many pairs as the densest is a candidate (and at least the twelve densest): a
+   subset of a card fits every stretch of the flight with its rhythm, and all of them must be
+   weighed. A given ``--offset-s`` is the only candidate; sync points keep only the candidates
+   inside their windows.
 2. Alignment by dynamic programming, per candidate. Nodes are the pairs (i, j) whose residual
    ``r_ij = f_i - predicted(e_j)`` is within ``tol``. A path is a chain of nodes increasing in
    both i and j (order is kept: a camera does not reorder its frames). Its cost is
@@ -27,11 +30,17 @@ event whose time pattern it shares, and frames or events left over are named.
    is matched whenever its costs are below the two gaps it saves. Predecessors are searched
    within ``max_skip`` frames and events; longer gaps (the camera stopped for a while) restart
    the chain from the best earlier node at the gap price. Cost O(N * band * max_skip^2).
-3. The candidate with the lowest cost wins. After step 4 the runner-up is refined the same way
-   and both are priced as a chi-square (squared residuals in units of the winner's scatter, plus
-   2 per unmatched item); a margin below 10 flags the result ambiguous with a warning: a regular
-   sequence with no pause to anchor it, where "nothing dropped" is only the likelier reading
-   (a shift by one frame loses one pair: 4); pass ``--offset-s`` to decide.
+3. Choosing, and saying when the data cannot choose. The alignments within five lost pairs of
+   the cheapest are refined (step 4) and priced in units of the timing noise ``sigma`` (the
+   residual scatter of the cheapest): ``sum (r / sigma)^2 + sum (dr)^2 / (2 sigma^2) + 6 per
+   unmatched item`` (dr: the interval mismatch of consecutive pairs; 6 = -2 ln 0.05, about one
+   frame in twenty dropped or extra), the lowest wins. After the tolerance is narrowed, every
+   other alignment at a clearly different offset (more than the final tolerance away) is priced
+   the same way; when the best of them is worse by less than ``10 + 2 ln N`` (N of them: odds of
+   e^5 against each), the result is flagged ambiguous and the warning names the competing
+   offsets. A regular sequence with no pause or turn to anchor it, or a subset of a card whose
+   rhythm repeats along the flight, is ambiguous; geotag then writes nothing until the crew
+   confirms the offset or gives a sync point.
 4. Robust refinement: the offset is the median of the matched pairs' time differences; with
    enough pairs over a long enough span (>= 10 pairs, >= 120 s) the drift is the Theil-Sen slope of
    those differences against event time, kept when it is significant (> 3 standard errors).
