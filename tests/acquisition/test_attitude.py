@@ -316,3 +316,66 @@ def test_tracks_are_plain_tables() -> None:
     assert len(yaws) == 2
     assert (yaws[0] - 355.0) == pytest.approx(0.0, abs=1e-6)
     assert yaws[1] == pytest.approx(5.0, abs=1e-6)
+
+
+def _write_frame(path: Path, capture_s: float) -> None:
+    import io
+    import math as m
+    from datetime import UTC, datetime
+
+    import pyexiv2
+    from PIL import Image
+
+    buffer = io.BytesIO()
+    Image.fromarray(np.full((16, 24, 3), 128, dtype=np.uint8)).save(buffer, format="JPEG")
+    image = pyexiv2.ImageData(buffer.getvalue())
+    whole = m.floor(capture_s)
+    image.modify_exif(
+        {
+            "Exif.Photo.DateTimeOriginal": datetime.fromtimestamp(whole, tz=UTC).strftime(
+                "%Y:%m:%d %H:%M:%S"
+            ),
+            "Exif.Photo.SubSecTimeOriginal": f"{min(999, round((capture_s - whole) * 1000)):03d}",
+        }
+    )
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_bytes(image.get_bytes())
+    image.close()
+
+
+def test_every_output_carries_the_heading_of_a_nadir_gimbal(tmp_path: Path) -> None:
+    """geo.txt, the Pix4D CSV, the XMP Camera:Yaw/Pitch/Roll and GPSImgDirection of frames taken
+    with the gimbal straight down (ArduPilot MOUNT_STATUS, yaw relative to the nose) all say
+    yaw = the vehicle's heading at the frame, pitch 0, roll 0 (read back with pyexiv2)."""
+    import pyexiv2
+
+    from acquisition import geotag
+
+    _gimbal_tlog(tmp_path / "g.tlog", "mount_status")
+    log = read_log(tmp_path / "g.tlog")
+    boots = [3.3, 7.9, 12.2, 18.6, 25.1, 31.4]
+    for k, boot in enumerate(boots):
+        _write_frame(tmp_path / "card" / f"F{k}.JPG", UTC_AT_BOOT + boot)
+    result = geotag.geotag_images(tmp_path / "card", log, tmp_path / "out", offset_s=0.0)
+    assert len(result.tagged) == len(boots)
+    geo = {r.split()[0]: r.split() for r in (tmp_path / "out" / "geo.txt").read_text().splitlines()[1:]}
+    pix4d = {
+        r.split(",")[0]: r.split(",")
+        for r in (tmp_path / "out" / "pix4d_geolocation.csv").read_text().splitlines()
+    }
+    for k, boot in enumerate(boots):
+        name = f"F{k}.JPG"
+        heading = _vehicle_yaw(boot)
+        image = pyexiv2.Image(str(tmp_path / "out" / name))
+        xmp, exif_tags = image.read_xmp(), image.read_exif()
+        image.close()
+        num, den = (int(v) for v in exif_tags["Exif.GPSInfo.GPSImgDirection"].split("/"))
+        readings = {
+            "geo.txt": [float(v) for v in geo[name][4:7]],
+            "pix4d": [float(v) for v in pix4d[name][4:7]],
+            "xmp": [float(xmp[f"Xmp.Camera.{a}"]) for a in ("Yaw", "Pitch", "Roll")],
+        }
+        for source, (yaw, pitch, roll) in readings.items():
+            assert abs((yaw - heading + 180.0) % 360.0 - 180.0) < 0.2, (source, name, yaw, heading)
+            assert abs(pitch) < 1e-3 and abs(roll) < 1e-3, (source, name, pitch, roll)
+        assert abs((num / den - heading + 180.0) % 360.0 - 180.0) < 0.2
