@@ -45,7 +45,7 @@ event whose time pattern it shares, and frames or events left over are named.
    enough pairs over a long enough span (>= 10 pairs, >= 120 s) the drift is the Theil-Sen slope of
    those differences against event time, kept when it is significant (> 3 standard errors).
    The alignment is repeated with the refined model until the pairs no longer change.
-   Then the tolerance is narrowed to eight times the residual scatter (plus half the clock's
+   Then the tolerance is narrowed to ten times the residual scatter (plus half the clock's
    resolution) and the alignment repeated, so that a spurious frame close to an event cannot
    take the event from the real frame.
 5. The result is rejected (:class:`GeotagError`) when fewer than half of the smaller sequence,
@@ -437,10 +437,10 @@ def match_frames_to_events(
 
     wide_tol = tol
     if tolerance_s is None and pairs:
-        # Second stage: the residual scatter sets the tolerance (8 sigma, as a scatter estimated
+        # Second stage: the residual scatter sets the tolerance (10 sigma, as a scatter estimated
         # from few pairs runs low; plus half the clock's resolution), so that a spurious frame
         # near an event cannot steal the event.
-        tol = float(np.clip(8.0 * scatter(pairs, offset, drift) + 0.5 * resolution_s, 0.05, tol))
+        tol = float(np.clip(10.0 * scatter(pairs, offset, drift) + 0.5 * resolution_s, 0.05, tol))
         pairs, offset, drift = refine(pairs, offset, drift, tol)
     if pairs and offset_s is None:
         # Every other contender at a clearly different offset (more than the final tolerance

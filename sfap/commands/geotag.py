@@ -117,7 +117,7 @@ def _log_progress(enabled: bool) -> Iterator[Callable[[int, int], None] | None]:
     type=float,
     default=None,
     help="Largest capture-time residual of a frame/event pair, seconds. Default: 35 percent of the "
-    "event interval, then 8 x the residual scatter.",
+    "event interval, then 10 x the residual scatter.",
 )
 @click.option(
     "--max-gap-s",

@@ -294,7 +294,8 @@ def test_regular_sequence_is_flagged_ambiguous() -> None:
 def test_matcher_property_random_surveys(seed: int, offset_s: float, interval_s: float) -> None:
     """Any survey-like timeline (lines of regular triggers, pauses in the turns), any offset,
     jitter 30 ms, up to 10 % dropped frames and up to 2 spurious frames between events: every
-    pair is right, and exactly the dropped events and the spurious frames are left over."""
+    pair is right, and exactly the dropped events and the spurious frames are left over; or
+    the matcher calls the alignment ambiguous and names the true offset among the competitors."""
     rng = np.random.default_rng(seed)
     events: list[float] = []
     t = START_S
@@ -313,6 +314,10 @@ def test_matcher_property_random_surveys(seed: int, offset_s: float, interval_s:
     f = np.array([t for t, _ in frames])
     truth = [j for _, j in frames]
     m = matching.match_frames_to_events(f, e)
+    if m.ambiguous:  # then geotag writes nothing: the true offset must be one of those named
+        named = [m.offset_s] + [o for o, _, _ in m.competitors]
+        assert min(abs(o - offset_s) for o in named) < 0.05
+        return
     assert all(truth[a] == b for a, b in m.pairs)
     assert set(m.unmatched_events.tolist()) == dropped
     assert [truth[k] for k in m.unmatched_frames] == [-1] * sum(1 for j in truth if j == -1)
