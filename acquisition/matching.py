@@ -58,6 +58,7 @@ event whose time pattern it shares, and frames or events left over are named.
 
 from __future__ import annotations
 
+import bisect
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -157,6 +158,7 @@ def _candidate_offsets(
     order = np.argsort(-support, kind="stable")
     needed = max(2, math.ceil(0.5 * int(support[order[0]])))
     chosen: list[float] = []
+    ordered: list[float] = []  # the same, sorted, to find the nearest quickly
     bounds: list[int | None] = []
     taken = np.zeros(diffs.size, dtype=bool)  # differences already inside a chosen window
     for k in order:
@@ -166,13 +168,18 @@ def _candidate_offsets(
             continue
         window = diffs[lo[k] : hi[k]]
         centre = float(np.median(window))
-        if all(abs(centre - c) > tol for c in chosen):
-            chosen.append(centre)
-            taken[lo[k] : hi[k]] = True
-            inside = int(
-                np.searchsorted(diffs, centre + tol, side="right") - np.searchsorted(diffs, centre - tol)
-            )
-            bounds.append(inside if step == 1 else None)
+        taken[lo[k] : hi[k]] = True  # this window is a candidate, or too close to one
+        at = bisect.bisect_left(ordered, centre)
+        if (at > 0 and centre - ordered[at - 1] <= tol) or (
+            at < len(ordered) and ordered[at] - centre <= tol
+        ):
+            continue
+        ordered.insert(at, centre)
+        chosen.append(centre)
+        inside = int(
+            np.searchsorted(diffs, centre + tol, side="right") - np.searchsorted(diffs, centre - tol)
+        )
+        bounds.append(inside if step == 1 else None)
     return list(zip(chosen, bounds, strict=True))
 
 
