@@ -907,3 +907,54 @@ def test_real_autopilot_log(tmp_path: Path, sitl_log: FlightLog) -> None:
     assert diffs.shape == (67, 3)
     assert np.all(np.abs(diffs).max(axis=0) < (2.5, 0.6, 1.0)), np.abs(diffs).max(axis=0)
     assert np.all(np.median(np.abs(diffs), axis=0) < 0.1)
+
+
+# ============================================================================ simulator, gimbal
+
+
+@pytest.mark.slow
+def test_simulated_flight_with_a_nadir_gimbal_keeps_the_heading(tmp_path: Path) -> None:
+    """The issue's case: the bundled gully mission flown in the simulator (ArduPilot, gimbal
+    commanded to -90, MOUNT_STATUS with the yaw relative to the nose). Every frame taken on a
+    straight line is written looking straight down (pitch 0, roll 0) with its yaw on the course
+    the vehicle flew, from the true shot positions before and after it. Before the fix, yaws
+    were up to 149 deg off (median 39)."""
+    from acquisition.simulator.server import SimulatedVehicle
+    from acquisition.telemetry import read_log
+    from planner.spec import load_spec
+    from planner.survey import plan_survey
+
+    repo = Path(__file__).resolve().parents[2]
+    plan = plan_survey(load_spec(repo / "missions" / "bardenas-gully.toml"))
+    tlog = tmp_path / "flight.tlog"
+    vehicle = SimulatedVehicle(
+        url="tcpin://127.0.0.1:0",
+        autopilot=plan.mission.autopilot,
+        speedup=400.0,
+        tlog_path=tlog,
+        home=plan.home,
+    )
+    with vehicle:
+        vehicle.load_mission(plan.mission.items)
+        vehicle.auto_start()
+        assert vehicle.wait_landed(timeout_s=120.0)
+    log = read_log(tlog)
+    assert log.gimbal is not None
+    shots = vehicle.flight.shots
+    assert {s.gimbal_pitch_deg for s in shots} == {-90.0}
+    write_frames(tmp_path / "card", np.array([s.utc_s + 12.5 for s in shots]))
+    result = geotag.geotag_images(tmp_path / "card", log, tmp_path / "out", dry_run=True)
+    by_event = {f.event_index: f for f in result.frames if f.status is FrameStatus.MATCHED}
+    assert len(by_event) == len(shots)
+    checked = 0
+    for k in range(1, len(shots) - 1):
+        before, shot, after = shots[k - 1], shots[k], shots[k + 1]
+        if not before.mission_seq == shot.mission_seq == after.mission_seq:
+            continue  # a turn: no straight course to compare with
+        course = math.degrees(math.atan2(after.x_m - before.x_m, after.y_m - before.y_m)) % 360.0
+        frame = by_event[k]
+        assert frame.yaw_deg is not None and frame.pitch_deg is not None and frame.roll_deg is not None
+        assert abs((frame.yaw_deg - course + 180.0) % 360.0 - 180.0) < 3.0, (k, frame.yaw_deg, course)
+        assert abs(frame.pitch_deg) < 1e-6 and abs(frame.roll_deg) < 1e-6
+        checked += 1
+    assert checked > 0.8 * len(shots)
