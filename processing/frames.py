@@ -4,7 +4,8 @@ Camera attitude follows the Pix4D / OpenDroneMap camera convention, which the XM
 ``Camera:Yaw/Pitch/Roll`` carry: (0, 0, 0) is a camera looking straight down with the top of
 the image toward north; ``yaw_deg`` turns it clockwise seen from above (the bearing of the image
 top), ``pitch_deg`` tilts the optical axis off nadir toward the image top, ``roll_deg`` turns it
-about the image's vertical axis. With roll 0, (yaw, pitch) are exactly the
+about the image's vertical axis, positive right wing down (the aircraft convention: a belly
+camera then looks to the image's left). With roll 0, (yaw, pitch) are exactly the
 (``up_bearing_deg``, ``tilt_deg``) of :mod:`planner.footprint`.
 """
 
