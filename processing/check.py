@@ -167,6 +167,7 @@ class CheckResult:
     flagged: tuple[FrameFlag, ...]
     plan: PlanInfo | None = None
     unpositioned: tuple[str, ...] = ()
+    left_out: tuple[tuple[str, str], ...] = ()
     stats: dict[str, Any] = field(default_factory=dict)
 
     @property
@@ -282,6 +283,7 @@ class CheckResult:
                 "attitude_source": frames.attitude_source.value,
                 "altitude_reference": frames.alt_reference.value,
                 "unpositioned": list(self.unpositioned),
+                "left_out": [{"name": name, "reason": why} for name, why in self.left_out],
             },
             "ground": self.ground_description,
             "area": {
@@ -389,6 +391,8 @@ def run_check(
     ground_description: str | None = None,
     notes: Sequence[str] = (),
     unpositioned: Sequence[str] = (),
+    left_out: Sequence[tuple[str, str]] = (),
+    warnings: Sequence[str] = (),
 ) -> CheckResult:
     """Check ``frames`` over ``ground`` (same altitude reference; see
     :func:`processing.inputs.ground_from_options`) and judge them against ``thresholds``.
@@ -397,8 +401,9 @@ def run_check(
     docstring). ``plan``: the plan the frames were meant to follow (its overlaps are the
     reference of the overlap checks). ``cell_m``: raster cell size in metres (None:
     :func:`default_cell_m`). ``progress(done, total)``: called while the view counts are
-    rasterized (the long part). ``notes`` and ``unpositioned`` (image names left out) go into
-    the report as they are.
+    rasterized (the long part). ``notes``, ``warnings``, ``unpositioned`` (image names without a
+    position) and ``left_out`` ((name, reason) of every frame not checked: no position, another
+    camera, not a survey frame) go into the report as they are.
     """
     from .coverage import (
         area_mask,
@@ -411,7 +416,7 @@ def run_check(
 
     if len(frames) == 0:
         raise ProcessingError("there is no frame to check")
-    warnings: list[str] = []
+    all_warnings: list[str] = list(warnings)
     all_notes = list(notes)
     frame = frames_local_frame(frames)
     fp = project_footprints(frames, frame, ground)
@@ -493,28 +498,34 @@ def run_check(
     gsd_raster = min_value_raster(rings, fp.gsd_cm[valid], grid)
 
     stereo = _stereo(frames, fp, ground, frame, grid, in_area, thresholds)
-    warnings.extend(stereo.warnings)
+    all_warnings.extend(stereo.warnings)
     all_notes.extend(stereo.notes)
     flagged.extend(stereo.flagged)
 
     if frames.attitude_source is AttitudeSource.ASSUMED_NADIR:
-        warnings.append(
+        all_warnings.append(
             "the images carry no attitude: every frame was taken as nadir with the image top along the "
             "track; tilted frames would shift the footprints"
         )
-    if unpositioned:
-        warnings.append(
+    if left_out:
+        all_warnings.append(
+            f"{len(left_out)} frame(s) left out of coverage, GSD and scale figures: "
+            + "; ".join(f"{name} ({why})" for name, why in left_out[:10])
+            + (f"; and {len(left_out) - 10} more (report.json)" if len(left_out) > 10 else "")
+        )
+    elif unpositioned:
+        all_warnings.append(
             f"{len(unpositioned)} image(s) without a position were left out: {', '.join(unpositioned)}"
         )
     if stereo.doming_risk:
-        warnings.append(
+        all_warnings.append(
             f"only {stereo.convergent_pct:.0f} % of the frames are convergent (oblique): a nadir-only block "
             "risks the doming effect (James and Robson 2014); add oblique frames or a crosshatch pass"
         )
     if plan is not None:
         gsd = Distribution.of(fp.gsd_cm[valid])
         if gsd is not None and gsd.median > 1.1 * plan.gsd_cm:
-            warnings.append(
+            all_warnings.append(
                 f"median GSD {gsd.median:.2f} cm is more than 10 % coarser than the planned "
                 f"{plan.gsd_cm:.2f} cm: flown higher than planned?"
             )
@@ -535,7 +546,7 @@ def run_check(
     return CheckResult(
         passed=not reasons,
         reasons=reasons,
-        warnings=tuple(warnings),
+        warnings=tuple(all_warnings),
         notes=tuple(all_notes),
         thresholds=thresholds,
         frames=frames,
@@ -572,6 +583,7 @@ def run_check(
         flagged=tuple(flagged),
         plan=plan,
         unpositioned=tuple(unpositioned),
+        left_out=tuple(left_out),
         stats={
             "views_median": stats["views_median"],
             "views_max": stats["views_max"],

@@ -8,12 +8,14 @@ from pathlib import Path
 import click
 
 from planner.area import build_area, load_polygons
-from planner.camera_db import get_camera
 from planner.outputs import check_output_dir
 from processing.check import CheckResult, Thresholds, run_check
+from processing.image_tags import camera_option
 from processing.inputs import (
+    GroundChoice,
     PlanInfo,
     frames_from_plan,
+    ground_for_plan,
     ground_from_options,
     image_paths,
     is_plan_folder,
@@ -81,13 +83,17 @@ def _thresholds(values: tuple[str, ...]) -> Thresholds:
     type=float,
     default=None,
     help="Elevation of the take-off point, metres AMSL (for altitudes relative to home "
-    "with --dem or --ground-elevation-m).",
+    "with --dem or --ground-elevation-m; a plan folder records its own).",
 )
 @click.option(
     "--camera",
     "camera_id",
     default=None,
-    help="Camera id from `sfap cameras` (default: matched from the images' EXIF).",
+    metavar="ID|FILE.toml",
+    help="The camera: an id from `sfap cameras`, or a TOML file with the keys of a mission spec's "
+    "[camera] table (sensor_width_mm, sensor_height_mm, image_width_px, image_height_px, "
+    "focal_length_mm, or model = ID with overrides). Default: from the images' EXIF (the database, "
+    "else EXIF focal length with focal plane resolution, else the 35 mm equivalent focal length).",
 )
 @click.option(
     "--cell-m",
@@ -138,8 +144,11 @@ def command(
     ground cell, gaps, forward and side overlap, base-height ratios, GSD, motion blur.
 
     Images' EXIF altitudes are above mean sea level: give --ground-elevation-m or --dem (the
-    check never guesses the height above ground). A plan's altitudes are relative to home
-    (flat ground at home unless --dem with --takeoff-elevation-m).
+    check never guesses the height above ground); DJI's relative altitudes are above take-off.
+    Frames without a real position, of another camera or image size, or not taken on the survey
+    (on the ground, climbing, in transit) are left out and listed. A plan is judged on its own
+    ground: a terrain plan on its DEM and take-off elevation (--dem to give the DEM), a flat
+    plan on flat ground at home.
 
     Exit code 0 when every threshold is met, 1 when the check fails (the reasons are
     printed), 2 for bad options or inputs.
@@ -151,16 +160,26 @@ def command(
     thresholds = _thresholds(threshold_items)
     if out_dir is not None:
         check_output_dir(out_dir, overwrite=overwrite)  # refuse before minutes of work
-    camera = get_camera(camera_id) if camera_id else None
+    camera = camera_option(camera_id) if camera_id else None
     show_progress = not no_progress and not as_json
     notes: tuple[str, ...] = ()
+    warnings: tuple[str, ...] = ()
+    left_out: tuple[tuple[str, str], ...] = ()
     plan: PlanInfo | None
     unpositioned: tuple[str, ...] = ()
+    choice: GroundChoice
     if is_plan_folder(source):
         if plan_dir is not None:
             raise click.UsageError(f"{source} is a plan folder already; drop --plan")
         frames, plan = frames_from_plan(source, camera=camera)
         notes = ("frames are the plan's stations (attitude as planned)",)
+        choice = ground_for_plan(
+            frames=frames,
+            info=plan,
+            dem=dem,
+            ground_elevation_m=ground_elevation_m,
+            takeoff_elevation_m=takeoff_elevation_m,
+        )
     else:
         plan = read_plan_info(plan_dir) if plan_dir is not None else None
         with progress("reading images", len(image_paths(source)), enabled=show_progress) as advance:
@@ -169,15 +188,17 @@ def command(
             )
         frames, notes, unpositioned = (
             images.frames,
-            (images.camera_source, *images.notes),
+            (f"camera: {images.camera_source}", *images.notes),
             images.unpositioned,
         )
-    choice = ground_from_options(
-        frames=frames,
-        dem=dem,
-        ground_elevation_m=ground_elevation_m,
-        takeoff_elevation_m=takeoff_elevation_m,
-    )
+        warnings, left_out = images.warnings, images.left_out
+        choice = ground_from_options(
+            frames=frames,
+            dem=dem,
+            ground_elevation_m=ground_elevation_m,
+            takeoff_elevation_m=takeoff_elevation_m,
+        )
+    left_out = (*left_out, *choice.left_out)
     area = None
     if area_file is not None:
         area, _ = build_area(load_polygons(area_file), [])
@@ -201,6 +222,8 @@ def command(
             ground_description=choice.description,
             notes=notes,
             unpositioned=unpositioned,
+            left_out=left_out,
+            warnings=warnings,
         )
     refly_plan = None
     if refly and result.gaps:
