@@ -23,8 +23,10 @@ The check works in metres in a transverse Mercator frame centred on the frames
 is a true bearing, and in a UTM zone (grid north up to 3 deg off) every footprint would turn
 about its camera and open false gaps along the area's edges.
 
-Gaps are the connected parts of the area seen by no frame, smaller ones than
-``Thresholds.min_gap_area_m2`` dropped (raster crumbs along footprint edges).
+Gaps are the connected parts of the area seen by no frame, computed on the footprints
+themselves (:func:`exact_gaps`: a sliver is one gap with its true area), smaller ones than
+``Thresholds.min_gap_area_m2`` dropped (crumbs where footprint corners meet). Shares of the
+area seen come from the view-count raster.
 """
 
 from __future__ import annotations
@@ -235,7 +237,11 @@ class CheckResult:
         elif blur is None:
             rows.append(("motion blur", "unknown (no frame has a measured speed)"))
         else:
-            rows.append(("motion blur", f"median {blur.median:.2f} px, max {blur.max:.2f} px"))
+            unknown_blur = int(np.isnan(self.blur_px).sum())
+            text = f"median {blur.median:.2f} px, max {blur.max:.2f} px (where worst in each frame)"
+            if unknown_blur:
+                text += f"; blur not computed for {unknown_blur} frames (speed or exposure unknown)"
+            rows.append(("motion blur", text))
         rows.append(
             (
                 "convergent frames",
@@ -379,6 +385,21 @@ def block_area_xy(centres_xy: NDArray[np.float64], footprint_short_side_m: float
     return hull
 
 
+def exact_gaps(
+    area_xy: Polygon | MultiPolygon, footprints: Sequence[Any] | NDArray[np.object_], *, min_area_m2: float
+) -> list[Polygon]:
+    """The gaps as they are, not as the raster sees them: the connected parts of the area that no
+    footprint covers (area minus the union of the footprints), at least ``min_area_m2`` each,
+    largest first. A sliver between two footprints that cuts across cells diagonally is one gap
+    with its true area here; on the raster it would be a chain of cells that touch at corners
+    (counted as many gaps) or none at all."""
+    union = shapely.union_all(shapely.make_valid(np.asarray(footprints, dtype=object)))
+    uncovered = shapely.make_valid(area_xy.difference(union))
+    parts = [g for g in shapely.get_parts(uncovered) if isinstance(g, Polygon) and g.area >= min_area_m2]
+    parts.sort(key=lambda p: p.area, reverse=True)
+    return parts
+
+
 def run_check(
     frames: Frames,
     *,
@@ -408,7 +429,6 @@ def run_check(
     from .coverage import (
         area_mask,
         coverage_stats,
-        gap_polygons,
         min_value_raster,
         view_count_raster,
     )
@@ -479,7 +499,7 @@ def run_check(
     seen_pct = {k: float(stats["seen_by_at_least_pct"][str(k)]) for k in VIEW_LEVELS}
     gaps: list[Gap] = []
     for k, polygon in enumerate(
-        gap_polygons(counts, in_area, grid, min_views=1, min_area_m2=thresholds.min_gap_area_m2),
+        exact_gaps(area_xy, fp.polygons()[valid], min_area_m2=thresholds.min_gap_area_m2),
         start=1,
     ):
         lonlat = frame.geometry_to_lonlat(polygon)
@@ -529,7 +549,20 @@ def run_check(
                 f"median GSD {gsd.median:.2f} cm is more than 10 % coarser than the planned "
                 f"{plan.gsd_cm:.2f} cm: flown higher than planned?"
             )
-    blurred = sum(1 for f in flagged if f.kind == "blur")
+    blurred_frames = (
+        [
+            (frames.name[k], float(stereo.blur_px[k]))
+            for k in np.flatnonzero(np.nan_to_num(stereo.blur_px, nan=0.0) > thresholds.fail_blur_px)
+        ]
+        if stereo.blur_px is not None
+        else []
+    )
+    warned = [f for f in flagged if f.kind == "blur"]
+    if warned:
+        all_warnings.append(
+            f"{len(warned)} frame(s) with motion blur above {thresholds.max_blur_px:g} px (flagged frames), "
+            f"{len(blurred_frames)} of them above {thresholds.fail_blur_px:g} px"
+        )
     reasons = judge(
         thresholds=thresholds,
         seen_pct=seen_pct,
@@ -538,7 +571,8 @@ def run_check(
         side_overlap_pct=stereo.side_overlap_pct,
         plan=plan,
         good_pair_pct=stereo.good_pair_pct,
-        blurred_count=blurred,
+        blurred_count=len(blurred_frames),
+        blurred_frames=blurred_frames,
         frame_count=len(frames),
         blur_unknown_count=(int(np.isnan(stereo.blur_px).sum()) if stereo.blur_px is not None else 0),
     )
@@ -666,19 +700,31 @@ def _stereo(
                 ),
             )
         )
-    blur = motion_blur(frames, fp, lines)
+    ring = fp.xy_m
+    ground_z = np.asarray(
+        ground.elevation_at(ring[..., 0].ravel(), ring[..., 1].ravel(), frame), dtype=np.float64
+    ).reshape(ring.shape[:2])
+    blur = motion_blur(frames, fp, lines, ground_z_m=ground_z)
     speed = blur.speed_m_s if blur is not None else None
     blur_px = blur.blur_px if blur is not None else None
     notes: list[str] = []
     if blur is not None and blur.blur_px is not None and blur.exposure_s is not None:
         for k in np.flatnonzero(np.nan_to_num(blur.blur_px, nan=0.0) > thresholds.max_blur_px):
+            centre = blur.blur_centre_px[k] if blur.blur_centre_px is not None else math.nan
             flagged.append(
                 FrameFlag(
                     name=frames.name[k],
                     kind="blur",
                     detail=(
-                        f"{blur.blur_px[k]:.2f} px of motion blur ({blur.speed_m_s[k]:.1f} m/s x "
-                        f"{blur.exposure_s[k] * 1000:.2f} ms / {fp.gsd_cm[k]:.2f} cm GSD)"
+                        f"{blur.blur_px[k]:.2f} px of motion blur where worst ({centre:.2f} px at the "
+                        "centre; "
+                        f"{blur.speed_m_s[k]:.1f} m/s x {blur.exposure_s[k] * 1000:.2f} ms, GSD "
+                        f"{fp.gsd_cm[k]:.2f} cm)"
+                        + (
+                            f": above {thresholds.fail_blur_px:g} px, it hurts matching"
+                            if blur.blur_px[k] > thresholds.fail_blur_px
+                            else f": above the {thresholds.max_blur_px:g} px warning"
+                        )
                     ),
                 )
             )

@@ -35,6 +35,7 @@ from matplotlib.colors import BoundaryNorm, ListedColormap
 from matplotlib.figure import Figure
 from matplotlib.patches import PathPatch, Rectangle
 from numpy.typing import NDArray
+from pyproj import CRS
 from shapely.geometry import Polygon, mapping
 from shapely.geometry.polygon import orient
 
@@ -518,6 +519,29 @@ Full figures in report.json.</p>
 """
 
 
+#: coverage.tif's value outside the area judged (0 inside means no frame sees the cell).
+COVERAGE_NODATA = -1
+
+
+def write_coverage_tif(result: CheckResult, path: str | os.PathLike[str]) -> Path:
+    """coverage.tif: frames that see each cell, int32, ``COVERAGE_NODATA`` outside the area, in
+    the UTM zone's EPSG code when the area lies in one zone (resampled, nearest, same cell size),
+    else in the check's own transverse Mercator frame; the band is described."""
+    from .coverage import utm_epsg, write_geotiff
+
+    counts = np.where(result.in_area, result.view_count, COVERAGE_NODATA).astype(np.int32)
+    west, south, east, north = result.area_lonlat.bounds
+    epsg = utm_epsg(west, south, east, north)
+    return write_geotiff(
+        path,
+        counts,
+        result.grid,
+        nodata=COVERAGE_NODATA,
+        description="views: frames that see the cell (0 = gap; nodata outside the area judged)",
+        to_crs=CRS.from_epsg(epsg) if epsg is not None else None,
+    )
+
+
 def write_report(
     result: CheckResult,
     out_dir: str | os.PathLike[str],
@@ -529,15 +553,13 @@ def write_report(
     ``refly``, that mission's files (``sfap plan``'s set) into ``out_dir/refly``."""
     from planner.export import OUTPUT_FILES, write_outputs
 
-    from .coverage import write_geotiff
-
     final = Path(out_dir)
     with staged_output_dir(final, overwrite=overwrite) as staging:
         atomic_write_bytes(staging / "view_count.png", view_count_png(result))
         atomic_write_bytes(staging / "gaps.png", gaps_png(result))
         atomic_write_bytes(staging / "gsd.png", gsd_png(result))
         atomic_write_bytes(staging / "base_height.png", base_height_png(result))
-        write_geotiff(staging / "coverage.tif", result.view_count, result.grid)
+        write_coverage_tif(result, staging / "coverage.tif")
         atomic_write_text(staging / "gaps.geojson", gaps_geojson(result))
         atomic_write_text(staging / "footprints.geojson", footprints_geojson(result))
         atomic_write_text(staging / "report.json", report_json(result))

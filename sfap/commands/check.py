@@ -10,6 +10,7 @@ import click
 from planner.area import build_area, load_polygons
 from planner.outputs import check_output_dir
 from processing.check import CheckResult, Thresholds, run_check
+from processing.errors import ProcessingError
 from processing.image_tags import camera_option
 from processing.inputs import (
     GroundChoice,
@@ -44,7 +45,10 @@ def _thresholds(values: tuple[str, ...]) -> Thresholds:
             raise click.BadParameter(
                 f"{item!r}: {text!r} is not a number", param_hint="--threshold"
             ) from None
-    return Thresholds(**changes)
+    try:
+        return Thresholds(**changes)
+    except ProcessingError as error:
+        raise click.BadParameter(str(error), param_hint="--threshold") from None
 
 
 @click.command("check")

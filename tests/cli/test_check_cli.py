@@ -79,16 +79,19 @@ def test_real_images_with_a_ground_elevation(tmp_path: Path) -> None:
     result = CliRunner().invoke(
         cli, ["check", str(GARFIELD), "--ground-elevation-m", "258", "-o", str(out), "--refly"]
     )
-    # The frames cover their block, but 11 of 28 are blurred beyond half a pixel: exit 1.
-    assert result.exit_code == 1, result.output
-    assert "motion blur" in result.output and "parrot-sequoia-rgb" in result.output
+    # The frames cover their block; 11 of 28 are blurred beyond half a pixel (1.5-1.8 px): a warning
+    # naming them, not a failure (the set reconstructs in OpenDroneMap).
+    assert result.exit_code == 0, result.output
+    assert "motion blur above 0.5 px" in result.output and "parrot-sequoia-rgb" in result.output
     assert "re-fly mission: none needed (no gap)" in result.output
     assert not (out / "refly").exists()
-    # Relaxing the blur threshold turns the verdict.
-    relaxed = CliRunner().invoke(
-        cli, ["check", str(GARFIELD), "--ground-elevation-m", "258", "--threshold", "max_blur_px=2"]
+    # A stricter failure threshold turns the verdict, naming the frames and their blur.
+    strict = CliRunner().invoke(
+        cli,
+        ["check", str(GARFIELD), "--ground-elevation-m", "258", "--threshold", "fail_blur_px=1.5"],
     )
-    assert relaxed.exit_code == 0, relaxed.output
+    assert strict.exit_code == 1, strict.output
+    assert "IMG_161122_163342_0012_RGB.JPG 1.8 px" in strict.output
 
 
 @pytest.mark.parametrize(
@@ -97,6 +100,7 @@ def test_real_images_with_a_ground_elevation(tmp_path: Path) -> None:
         (["--refly"], "-o REPORT"),
         (["--threshold", "nope=1"], "KEY=VALUE"),
         (["--threshold", "max_blur_px=x"], "not a number"),
+        (["--threshold", "max_blur_px=3"], "fail_blur_px = 2.0 must be at least max_blur_px = 3.0"),
         (["--plan", "."], "drop --plan"),
         (["--camera", "no-such-camera"], "not in the built-in database"),
     ],
