@@ -168,6 +168,8 @@ class CheckResult:
     blur_px: NDArray[np.float64] | None
     flagged: tuple[FrameFlag, ...]
     plan: PlanInfo | None = None
+    pair_along_line: NDArray[np.bool_] | None = None
+    pair_across_lines: NDArray[np.bool_] | None = None
     unpositioned: tuple[str, ...] = ()
     left_out: tuple[tuple[str, str], ...] = ()
     stats: dict[str, Any] = field(default_factory=dict)
@@ -176,6 +178,20 @@ class CheckResult:
     def exit_code(self) -> int:
         """0 when the check passed, 1 when it failed."""
         return 0 if self.passed else 1
+
+    @property
+    def base_height_along_line(self) -> Distribution | None:
+        """B/H of consecutive frames of a line (the forward-overlap pairs)."""
+        if self.pair_along_line is None:
+            return None
+        return Distribution.of(self.pair_base_height_ratio[self.pair_along_line])
+
+    @property
+    def base_height_across_lines(self) -> Distribution | None:
+        """B/H of pairs of frames on different lines (the side-overlap pairs)."""
+        if self.pair_across_lines is None:
+            return None
+        return Distribution.of(self.pair_base_height_ratio[self.pair_across_lines])
 
     @property
     def gap_area_m2(self) -> float:
@@ -208,12 +224,23 @@ class CheckResult:
             if planned is not None:
                 text += f", planned {planned:g} %"
             rows.append((label, text))
-        bh = Distribution.of(self.pair_base_height_ratio)
-        if bh is not None:
-            text = f"median {bh.median:.2f} over {bh.count} pairs"
-            if self.good_pair_pct is not None:
-                text += f"; {self.good_pair_pct:.1f} % of the area has a pair in range"
-            rows.append(("base-height ratio", text))
+        for label, dist in (
+            ("B/H along lines", self.base_height_along_line),
+            ("B/H across lines", self.base_height_across_lines),
+        ):
+            if dist is None:
+                rows.append((label, "no such pair"))
+            else:
+                text = f"median {dist.median:.2f} (10-90 %: {dist.p10:.2f}-{dist.p90:.2f})"
+                rows.append((label, f"{text} over {dist.count} pairs"))
+        if self.good_pair_pct is not None:
+            rows.append(
+                (
+                    "stereo",
+                    f"{self.good_pair_pct:.1f} % of the area has a pair with B/H in "
+                    f"{self.thresholds.min_base_height_ratio:g}-{self.thresholds.max_base_height_ratio:g}",
+                )
+            )
         gsd = Distribution.of(self.gsd_cm)
         if gsd is not None:
             rows.append(("GSD", f"median {gsd.median:.2f} cm ({gsd.min:.2f}-{gsd.max:.2f} cm)"))
@@ -322,6 +349,12 @@ class CheckResult:
             "stereo": {
                 "pair_count": int(self.pair_index.shape[0]),
                 "base_height_ratio": bh.as_dict() if bh else None,
+                "base_height_ratio_along_line": (
+                    d.as_dict() if (d := self.base_height_along_line) is not None else None
+                ),
+                "base_height_ratio_across_lines": (
+                    d.as_dict() if (d := self.base_height_across_lines) is not None else None
+                ),
                 "intersection_angle_deg": angle.as_dict() if angle else None,
                 "good_pair_area_pct": self.good_pair_pct,
                 "convergent_frames_pct": self.convergent_pct,
@@ -608,6 +641,8 @@ def run_check(
         pair_index=stereo.pair_index,
         pair_base_height_ratio=stereo.pair_base_height_ratio,
         pair_intersection_deg=stereo.pair_intersection_deg,
+        pair_along_line=stereo.pair_along_line,
+        pair_across_lines=stereo.pair_across_lines,
         good_pair_pct=stereo.good_pair_pct,
         stereo_class=stereo.stereo_class,
         convergent_pct=stereo.convergent_pct,
@@ -635,6 +670,8 @@ class _Stereo:
     pair_index: NDArray[np.int64]
     pair_base_height_ratio: NDArray[np.float64]
     pair_intersection_deg: NDArray[np.float64]
+    pair_along_line: NDArray[np.bool_]
+    pair_across_lines: NDArray[np.bool_]
     good_pair_pct: float | None
     stereo_class: NDArray[np.int8]
     convergent_pct: float
@@ -666,12 +703,14 @@ def _stereo(
         motion_blur,
         off_nadir_deg,
         overlapping_pairs,
+        pair_kinds,
         scale_outliers,
         side_overlaps_pct,
     )
 
     pairs = overlapping_pairs(fp, ground, frame)
     lines = flight_lines(frames, fp)
+    along, across = pair_kinds(frames, pairs, lines)
     bh = pairs.base_height_ratio
     lo, hi = thresholds.min_base_height_ratio, thresholds.max_base_height_ratio
     classes = np.full(grid.shape, STEREO_NONE, dtype=np.int8)
@@ -751,6 +790,8 @@ def _stereo(
         pair_index=np.column_stack([pairs.i, pairs.j]).astype(np.int64),
         pair_base_height_ratio=np.asarray(bh, dtype=np.float64),
         pair_intersection_deg=np.asarray(pairs.intersection_angle_deg, dtype=np.float64),
+        pair_along_line=along,
+        pair_across_lines=across,
         good_pair_pct=good_pct,
         stereo_class=classes,
         convergent_pct=convergent_pct,

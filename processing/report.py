@@ -34,6 +34,7 @@ from matplotlib.collections import PolyCollection
 from matplotlib.colors import BoundaryNorm, ListedColormap
 from matplotlib.figure import Figure
 from matplotlib.patches import PathPatch, Rectangle
+from matplotlib.text import Text as MplText
 from numpy.typing import NDArray
 from pyproj import CRS
 from shapely.geometry import Polygon, mapping
@@ -212,26 +213,70 @@ def gaps_png(result: CheckResult) -> bytes:
             m.ax.add_patch(
                 PathPatch(gp, facecolor=_GAP_COLOUR, edgecolor="#7f0000", lw=0.8, alpha=0.85, zorder=5)
             )
-        c = gap.polygon_xy.representative_point()
-        m.ax.annotate(
-            str(gap.index),
-            (c.x - m.origin[0], c.y - m.origin[1]),
-            fontsize=9,
-            fontweight="bold",
-            color="black",
-            ha="center",
-            va="center",
-            zorder=8,
-            bbox={
-                "boxstyle": "round,pad=0.15",
-                "facecolor": "white",
-                "edgecolor": _GAP_COLOUR,
-                "lw": 0.8,
-            },
-        )
     m.area_outline()
     m.centres()
+    anchors = []
+    for gap in result.gaps:
+        c = gap.polygon_xy.representative_point()
+        anchors.append((c.x - m.origin[0], c.y - m.origin[1]))
+    place_labels(m.ax, anchors, [str(gap.index) for gap in result.gaps])
     return m.png()
+
+
+#: Offsets tried for a label that would overlap another, points, in rings around its anchor.
+_LABEL_DIRECTIONS = ((0, 1), (1, 0), (0, -1), (-1, 0), (1, 1), (-1, 1), (1, -1), (-1, -1))
+
+
+def _text_box(label: Any, renderer: Any) -> Any:
+    """The window extent of an annotation's text and its frame, without the leader line."""
+    return MplText.get_window_extent(label, renderer).expanded(1.3, 1.3)
+
+
+def place_labels(ax: Any, anchors: Sequence[tuple[float, float]], texts: Sequence[str]) -> list[Any]:
+    """Label each anchor (data coordinates) so that no two labels overlap: a label that would
+    overlap one already placed moves out in rings of 14 pt around its anchor, with a leader line.
+    Labels are placed in the order given (the largest gap first keeps its place). Returns the
+    annotations."""
+    figure = ax.figure
+    renderer = figure.canvas.get_renderer()
+    figure.canvas.draw()
+    placed: list[Any] = []
+    boxes: list[Any] = []
+    style = {
+        "fontsize": 9,
+        "fontweight": "bold",
+        "color": "black",
+        "ha": "center",
+        "va": "center",
+        "zorder": 8,
+        "bbox": {"boxstyle": "round,pad=0.15", "facecolor": "white", "edgecolor": _GAP_COLOUR, "lw": 0.8},
+    }
+    for (x, y), text in zip(anchors, texts, strict=True):
+        label = ax.annotate(text, (x, y), xytext=(0, 0), textcoords="offset points", **style)
+        box = _text_box(label, renderer)
+        ring = 0
+        while any(box.overlaps(other) for other in boxes) and ring < 12:
+            ring += 1
+            for dx, dy in _LABEL_DIRECTIONS:
+                label.set_position((14 * ring * dx, 14 * ring * dy))
+                box = _text_box(label, renderer)
+                if not any(box.overlaps(other) for other in boxes):
+                    break
+        if ring:
+            label.remove()
+            offset = label.get_position()
+            label = ax.annotate(
+                text,
+                (x, y),
+                xytext=offset,
+                textcoords="offset points",
+                arrowprops={"arrowstyle": "-", "color": _GAP_COLOUR, "lw": 0.7},
+                **style,
+            )
+            box = _text_box(label, renderer)
+        placed.append(label)
+        boxes.append(box)
+    return placed
 
 
 def gsd_png(result: CheckResult) -> bytes:
@@ -428,7 +473,11 @@ def report_html(result: CheckResult, *, refly: SurveyPlan | None = None) -> str:
         [
             _dist_row("forward overlap", result.forward_overlap_pct, ".0f", " %"),
             _dist_row("side overlap", result.side_overlap_pct, ".0f", " %"),
-            _dist_row("pair base-height ratio", Distribution.of(result.pair_base_height_ratio), ".2f", ""),
+            _dist_row("B/H, consecutive frames of a line", result.base_height_along_line, ".2f", ""),
+            _dist_row("B/H, neighbouring lines", result.base_height_across_lines, ".2f", ""),
+            _dist_row(
+                "B/H, every overlapping pair", Distribution.of(result.pair_base_height_ratio), ".2f", ""
+            ),
             _dist_row(
                 "pair intersection angle",
                 Distribution.of(result.pair_intersection_deg),

@@ -52,6 +52,8 @@ CONVERGENT_OFF_NADIR_DEG = 10.0
 SCALE_TOLERANCE = 0.10
 LINE_BREAK_TURN_DEG = 30.0
 LINE_BREAK_JUMP_RATIO = 3.0
+#: A line whose nearest frame is within this factor of the nearest other line's is a neighbour.
+NEIGHBOUR_LINE_RATIO = 1.5
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -323,6 +325,44 @@ def flight_lines(
     breaks = ~keep | corner
     lines[order] = np.concatenate([[0], np.cumsum(breaks)])
     return lines
+
+
+def pair_kinds(
+    frames: Frames, pairs: Pairs, lines: NDArray[np.int64]
+) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
+    """Which pairs matter for stereo: (along, across). ``along``: consecutive frames of a line
+    (next to each other in capture order, same line), the forward-overlap pairs whose B/H the
+    plan sets with its endlap; ``across``: a frame and the nearest frame of each other line it
+    overlaps, if that line is a neighbouring one (its nearest frame no further than
+    :data:`NEIGHBOUR_LINE_RATIO` x the nearest other line's), the side-overlap pairs whose B/H the
+    line spacing sets. Other pairs (a frame and the
+    one two ahead, diagonal pairs across lines) are neither."""
+    order = capture_order(frames)
+    rank = np.empty(len(frames), dtype=np.int64)
+    rank[order] = np.arange(len(frames))
+    same = lines[pairs.i] == lines[pairs.j]
+    along = same & (np.abs(rank[pairs.i] - rank[pairs.j]) == 1)
+    # Across lines: for each frame and each neighbouring line, the pair with that line's nearest
+    # frame (the base is the line spacing there), not every diagonal or farther-line pair.
+    across = np.zeros(len(pairs), dtype=bool)
+    candidates = np.flatnonzero(~same)
+    if candidates.size:
+        frame_of = np.concatenate([pairs.i[candidates], pairs.j[candidates]])
+        other_line = np.concatenate([lines[pairs.j[candidates]], lines[pairs.i[candidates]]])
+        base = np.concatenate([pairs.base_m[candidates], pairs.base_m[candidates]])
+        which = np.concatenate([candidates, candidates])
+        sort = np.lexsort((base, other_line, frame_of))
+        key = np.column_stack([frame_of[sort], other_line[sort]])
+        first = np.ones(len(sort), dtype=bool)
+        first[1:] = (key[1:] != key[:-1]).any(axis=1)
+        nearest = which[sort][first]
+        owner = frame_of[sort][first]
+        base_nearest = base[sort][first]
+        # Only the neighbouring lines: a line two spacings away is as far again as the nearest.
+        least = np.full(len(frames), np.inf)
+        np.minimum.at(least, owner, base_nearest)
+        across[nearest[base_nearest <= NEIGHBOUR_LINE_RATIO * least[owner]]] = True
+    return along, across
 
 
 def forward_overlaps_pct(frames: Frames, footprints: Footprints, lines: NDArray[np.int64]) -> F64:
