@@ -172,6 +172,7 @@ class CheckResult:
     pair_across_lines: NDArray[np.bool_] | None = None
     unpositioned: tuple[str, ...] = ()
     left_out: tuple[tuple[str, str], ...] = ()
+    camera_source: str = ""
     stats: dict[str, Any] = field(default_factory=dict)
 
     @property
@@ -204,6 +205,7 @@ class CheckResult:
                 "frames",
                 f"{len(self.frames)} ({self.frames.camera.id}, attitude {self.frames.attitude_source.value})",
             ),
+            *([("camera", self.camera_source)] if self.camera_source else []),
             ("ground", self.ground_description),
             ("area", f"{self.area_m2 / 1e4:.2f} ha ({self.area_source}), cells {self.cell_m:g} m"),
             (
@@ -262,7 +264,7 @@ class CheckResult:
         elif self.blur_px is None:
             rows.append(("motion blur", "not computed (no exposure time in the images or the camera)"))
         elif blur is None:
-            rows.append(("motion blur", "unknown (no frame has a measured speed)"))
+            rows.append(("motion blur", "blur not computed for any frame (speed or exposure unknown)"))
         else:
             unknown_blur = int(np.isnan(self.blur_px).sum())
             text = f"median {blur.median:.2f} px, max {blur.max:.2f} px (where worst in each frame)"
@@ -313,6 +315,7 @@ class CheckResult:
                 "count": len(frames),
                 "camera_id": frames.camera.id,
                 "camera_name": frames.camera.name,
+                "camera_source": self.camera_source or None,
                 "attitude_source": frames.attitude_source.value,
                 "altitude_reference": frames.alt_reference.value,
                 "unpositioned": list(self.unpositioned),
@@ -447,6 +450,7 @@ def run_check(
     unpositioned: Sequence[str] = (),
     left_out: Sequence[tuple[str, str]] = (),
     warnings: Sequence[str] = (),
+    camera_source: str = "",
 ) -> CheckResult:
     """Check ``frames`` over ``ground`` (same altitude reference; see
     :func:`processing.inputs.ground_from_options`) and judge them against ``thresholds``.
@@ -555,6 +559,11 @@ def run_check(
     all_notes.extend(stereo.notes)
     flagged.extend(stereo.flagged)
 
+    from .survey_frames import altitude_drift_warning
+
+    drift = altitude_drift_warning(frames.alt_m, frames.time_utc_s, median_height, frames.alt_reference.value)
+    if drift is not None:
+        all_warnings.append(drift)
     if frames.attitude_source is AttitudeSource.ASSUMED_NADIR:
         all_warnings.append(
             "the images carry no attitude: every frame was taken as nadir with the image top along the "
@@ -653,6 +662,7 @@ def run_check(
         plan=plan,
         unpositioned=tuple(unpositioned),
         left_out=tuple(left_out),
+        camera_source=camera_source,
         stats={
             "views_median": stats["views_median"],
             "views_max": stats["views_max"],

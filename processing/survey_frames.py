@@ -101,3 +101,33 @@ def select_survey_frames(
                 reasons.append((int(r), f"in transit: {dist:.0f} m from the nearest other frame"))
     reasons.sort()
     return SurveySelection(keep=keep, left_out=tuple(reasons), ground_suspect=suspect, median_height_m=median)
+
+
+#: A camera altitude that trends by more than this over a flight is reported, metres.
+ALTITUDE_DRIFT_M = 10.0
+
+
+def altitude_drift_warning(
+    alt_m: NDArray[np.float64], time_s: NDArray[np.float64] | None, height_agl_m: float, reference: str
+) -> str | None:
+    """A warning when the camera altitudes of the survey frames trend by more than
+    :data:`ALTITUDE_DRIFT_M` over the flight (least-squares line of altitude on time): a survey
+    is flown at one height, and GPS altitude (unlike barometric, relative altitude) can drift by
+    tens of metres. ``height_agl_m``: the block's median height, to say what it does to GSD."""
+    if time_s is None or alt_m.size < 3 or reference not in ("amsl", "ellipsoid"):
+        return None
+    t = np.asarray(time_s, dtype=np.float64)
+    span_s = float(t.max() - t.min())
+    if not span_s > 0:
+        return None
+    slope, _ = np.polyfit(t - t.min(), np.asarray(alt_m, dtype=np.float64), 1)
+    drift = float(slope * span_s)
+    if abs(drift) <= ALTITUDE_DRIFT_M:
+        return None
+    share = 100.0 * abs(drift) / 2.0 / height_agl_m if height_agl_m > 0 else float("nan")
+    return (
+        f"the GPS altitudes trend by {drift:+.1f} m over the {span_s / 60:.0f} min of survey frames "
+        f"({slope * 600:+.1f} m per 10 min): if the block was flown at one height (most are), the GPS "
+        f"altitude drifted, and heights above ground and GSD carry about +-{abs(drift) / 2:.0f} m "
+        f"(+-{share:.0f} %); a relative (barometric) altitude or a surveyed take-off elevation settles it"
+    )

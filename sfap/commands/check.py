@@ -172,6 +172,7 @@ def command(
     plan: PlanInfo | None
     unpositioned: tuple[str, ...] = ()
     choice: GroundChoice
+    camera_source = ""
     if is_plan_folder(source):
         if plan_dir is not None:
             raise click.UsageError(f"{source} is a plan folder already; drop --plan")
@@ -196,6 +197,7 @@ def command(
             images.unpositioned,
         )
         warnings, left_out = images.warnings, images.left_out
+        camera_source = images.camera_source
         choice = ground_from_options(
             frames=frames,
             dem=dem,
@@ -228,6 +230,7 @@ def command(
             unpositioned=unpositioned,
             left_out=left_out,
             warnings=warnings,
+            camera_source=camera_source,
         )
     refly_plan = None
     if refly and result.gaps:
