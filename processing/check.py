@@ -51,7 +51,7 @@ from .footprints import Footprints
 from .frames import AttitudeSource, Frames
 from .ground import Ground
 from .inputs import PlanInfo, frames_local_frame
-from .verdict import DEFAULT_THRESHOLDS, Thresholds, judge
+from .verdict import DEFAULT_THRESHOLDS, Thresholds, above, good_base_height, judge
 
 log = logging.getLogger(__name__)
 
@@ -594,7 +594,7 @@ def run_check(
     blurred_frames = (
         [
             (frames.name[k], float(stereo.blur_px[k]))
-            for k in np.flatnonzero(np.nan_to_num(stereo.blur_px, nan=0.0) > thresholds.fail_blur_px)
+            for k in np.flatnonzero(above(stereo.blur_px, thresholds.fail_blur_px))
         ]
         if stereo.blur_px is not None
         else []
@@ -727,10 +727,11 @@ def _stereo(
     good_pct: float | None = None
     if len(pairs):
         # Later classes win: a cell with any good pair is good, else wide, else weak.
+        good = good_base_height(bh, thresholds)
         for code, select in (
-            (STEREO_WEAK, bh < lo),
-            (STEREO_WIDE, bh > hi),
-            (STEREO_GOOD, (bh >= lo) & (bh <= hi)),
+            (STEREO_WEAK, ~good & (bh < lo)),
+            (STEREO_WIDE, ~good & (bh > hi)),
+            (STEREO_GOOD, good),
         ):
             if select.any():
                 classes[count_raster(list(pairs.intersection[select]), grid) > 0] = code
@@ -758,7 +759,7 @@ def _stereo(
     blur_px = blur.blur_px if blur is not None else None
     notes: list[str] = []
     if blur is not None and blur.blur_px is not None and blur.exposure_s is not None:
-        for k in np.flatnonzero(np.nan_to_num(blur.blur_px, nan=0.0) > thresholds.max_blur_px):
+        for k in np.flatnonzero(above(blur.blur_px, thresholds.max_blur_px)):
             centre = blur.blur_centre_px[k] if blur.blur_centre_px is not None else math.nan
             flagged.append(
                 FrameFlag(
@@ -771,7 +772,7 @@ def _stereo(
                         f"{fp.gsd_cm[k]:.2f} cm)"
                         + (
                             f": above {thresholds.fail_blur_px:g} px, it hurts matching"
-                            if blur.blur_px[k] > thresholds.fail_blur_px
+                            if above(blur.blur_px[k : k + 1], thresholds.fail_blur_px)[0]
                             else f": above the {thresholds.max_blur_px:g} px warning"
                         )
                     ),

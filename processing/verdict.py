@@ -12,6 +12,9 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+import numpy as np
+from numpy.typing import NDArray
+
 from .errors import ProcessingError
 from .inputs import PlanInfo
 
@@ -105,6 +108,17 @@ class Thresholds:
 
 #: The defaults, the thresholds a check uses when none are given.
 DEFAULT_THRESHOLDS = Thresholds()
+
+
+def good_base_height(ratio: NDArray[np.float64], thresholds: Thresholds) -> NDArray[np.bool_]:
+    """Pairs whose B/H lies in the good range, both ends included."""
+    lo, hi = thresholds.min_base_height_ratio, thresholds.max_base_height_ratio
+    return np.asarray((ratio >= lo) & (ratio <= hi), dtype=bool)
+
+
+def above(values_px: NDArray[np.float64], limit_px: float) -> NDArray[np.bool_]:
+    """Frames whose blur is strictly above ``limit_px`` (unknown, NaN, is not above)."""
+    return np.asarray(np.nan_to_num(values_px, nan=-np.inf) > limit_px, dtype=bool)
 
 
 def judge(
