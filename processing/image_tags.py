@@ -5,7 +5,8 @@ Camera sources, most to least sure (:class:`CameraChoice` says which was used):
 
 1. given (``--camera ID`` or ``--camera FILE.toml``): what the crew says;
 2. the database (:func:`planner.camera_db.match_exif`): a datasheet, matched by EXIF make,
-   model, focal length and image size;
+   model, focal length and image size; images of a database camera scaled to another size of
+   the same aspect ratio keep its sensor and lens (:func:`resized`);
 3. EXIF FocalLength with FocalPlaneX/YResolution (and its unit): the focal length in pixels
    as the camera maker states it. Good to about 1 %; some makers give the resolution of the
    full sensor while the image is a crop, which the check cannot see (hence not "sure");
@@ -210,6 +211,26 @@ def choose_camera(
                 f"EXIF {name} matched to the database camera {matched.id} ({matched.source.split(';')[0]})"
             ),
         )
+    if tags.width_px and tags.height_px:
+        # A database camera whose images were scaled (a copy resized for the web or a test set):
+        # the same sensor and lens, fewer pixels. EXIF focal plane tags copied along with the
+        # rest would describe the original size, so the database wins.
+        same_body = match_exif(tags.make, tags.model, focal, None, None)
+        if same_body is not None:
+            w, h = int(tags.width_px), int(tags.height_px)
+            if w < h and same_body.image_width_px > same_body.image_height_px:
+                w, h = h, w
+            if abs(w / h - same_body.image_width_px / same_body.image_height_px) < 0.01 * w / h:
+                camera = resized(same_body, w, h)
+                return CameraChoice(
+                    camera=camera,
+                    confidence=CameraConfidence.DATASHEET,
+                    source=(
+                        f"EXIF {name} matched to the database camera {same_body.id}, its images scaled from "
+                        f"{same_body.image_width_px}x{same_body.image_height_px} to {w}x{h} px (same sensor "
+                        "and lens; EXIF focal plane tags of a scaled copy describe the original size)"
+                    ),
+                )
     if tags.width_px and tags.height_px and camera_tags is not None:
         choice = _exif_camera(
             make=tags.make,

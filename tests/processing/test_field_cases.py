@@ -362,3 +362,29 @@ def test_dji_oblique_frames_are_not_checked_as_nadir(card: Path) -> None:
     k = 0
     x_cam = result.frame.to_xy(result.frames.lon_deg[k], result.frames.lat_deg[k])[0]
     assert result.centres_xy[k, 0] - x_cam == pytest.approx(result.height_agl_m[k], rel=1e-6)
+
+
+# --- a second real set: the kite survey of copr_kap (Canon Rebel XSi, halved, no GPS) -------------
+
+COPR = SHARED_DATA / "copr_kap" / "images"
+
+
+def test_halved_frames_of_a_database_camera_keep_its_sensor_and_lens() -> None:
+    from processing.image_tags import choose_camera
+
+    tags, extra = read_tags_and_camera(sorted(COPR.iterdir())[0])
+    choice = choose_camera(tags, extra)
+    assert (
+        choice.confidence is CameraConfidence.DATASHEET
+        and "scaled from 4272x2848 to 2136x1424" in choice.source
+    )
+    # Oracle: 30 mm over twice the datasheet's 5.2 um pitch (the EXIF focal plane resolution,
+    # copied from the full-size original, would say twice as many pixels).
+    f_px = choice.camera.focal_length_mm / choice.camera.pixel_pitch_x_mm
+    assert f_px == pytest.approx(30.0 / (2 * 0.0052), rel=0.01)
+
+
+def test_a_set_without_gps_says_geotag_first() -> None:
+    result = CliRunner().invoke(cli, ["check", str(COPR), "--ground-elevation-m", "0", "--no-progress"])
+    assert result.exit_code == 2
+    assert "no GPS positions: geotag first" in result.output
