@@ -807,13 +807,14 @@ def ground_for_plan(
 
     A terrain plan (summary.json has ``terrain``) is judged on its own DEM (``dem`` if given,
     else the DEM it recorded, :func:`plan_dem_path`) with its own take-off elevation
-    (:func:`plan_takeoff_elevation_m`) unless ``takeoff_elevation_m`` is given. When its DEM
+    (:func:`plan_takeoff_elevation_m`) unless ``takeoff_elevation_m`` is given. With a DEM and no
+    take-off elevation (a flat plan), the take-off elevation is the DEM's at the plan's home. When its DEM
     cannot be found, on the heights above ground the planner computed for each station (over
     flat ground under each frame), and the description says so. A flat plan: as
     :func:`ground_from_options`.
     """
     terrain = info.summary.get("terrain")
-    if not isinstance(terrain, dict) or ground_elevation_m is not None:
+    if ground_elevation_m is not None or (not isinstance(terrain, dict) and dem is None):
         return ground_from_options(
             frames=frames,
             dem=dem,
@@ -821,19 +822,28 @@ def ground_for_plan(
             takeoff_elevation_m=takeoff_elevation_m,
         )
     takeoff = takeoff_elevation_m if takeoff_elevation_m is not None else plan_takeoff_elevation_m(info)
+    takeoff_source = "given" if takeoff_elevation_m is not None else "the plan's"
     dem_path = Path(dem) if dem is not None else plan_dem_path(info)
+    if dem_path is not None and takeoff is None:
+        takeoff = _dem_elevation_at_home(dem_path, info)
+        takeoff_source = "the DEM's at the plan's home"
     if dem_path is not None and takeoff is not None:
         choice = ground_from_options(frames=frames, dem=dem_path, takeoff_elevation_m=takeoff)
         source = "given" if dem is not None else "the plan's own"
         return replace(
-            choice, description=f"{choice.description} ({source} DEM, the plan's take-off elevation)"
+            choice, description=f"{choice.description} ({source} DEM; take-off elevation {takeoff_source})"
+        )
+    if not isinstance(terrain, dict):
+        raise GroundError(
+            f"the plan records no home position to read the take-off elevation off {dem}; give it "
+            "(--takeoff-elevation-m, metres AMSL)"
         )
     agl = _plan_station_agl(info)
     if agl is None:
         raise GroundError(
             f"{info.folder} is a terrain plan made on DEM {terrain.get('dem')!r}, which is not in the plan "
-            "folder or "
-            "at that path, and its stations carry no height above ground; give the DEM (--dem FILE.tif)"
+            "folder or at that path, and its stations carry no height above ground; give the DEM "
+            "(--dem FILE.tif)"
         )
     agl_frames = replace(frames, alt_m=agl, alt_reference=AltitudeReference.AGL)
     choice = ground_from_options(frames=agl_frames)
@@ -845,6 +855,21 @@ def ground_for_plan(
             "found: flat ground under each frame; give --dem for footprints over the real relief)"
         ),
     )
+
+
+def _dem_elevation_at_home(dem: Path, info: PlanInfo) -> float | None:
+    """The ground elevation (m AMSL) at the plan's home on ``dem``: the take-off point is on the
+    ground. None when the plan records no home or the DEM does not cover it."""
+    from .ground import DemGround
+
+    if info.home_lon_deg is None or info.home_lat_deg is None:
+        return None
+    frame = local_frame_at(info.home_lon_deg, info.home_lat_deg)
+    ground = DemGround.from_geotiff(dem, reference=AltitudeReference.AMSL)
+    try:
+        return float(np.asarray(ground.elevation_at(np.array([0.0]), np.array([0.0]), frame))[0])
+    except GroundError:
+        return None
 
 
 def _plan_station_agl(info: PlanInfo) -> np.ndarray | None:
@@ -894,8 +919,11 @@ def _survey_frames(
     frame_length_m = (
         max(frames.camera.footprint(median, Orientation.LANDSCAPE).along_m, 1.0) if median > 0 else None
     )
-    xy = None if frames.attitude_source is AttitudeSource.PLAN else np.column_stack([x, y])
-    selection = select_survey_frames(height, xy, frame_length_m)
+    plan = frames.attitude_source is AttitudeSource.PLAN
+    xy = None if plan else np.column_stack([x, y])
+    selection = select_survey_frames(height, xy, frame_length_m, alt_m=frames.alt_m)
+    if plan:  # every station of a plan is a survey frame; only the ground is judged
+        selection = replace(selection, keep=np.ones(len(frames), dtype=bool), left_out=())
     if selection.ground_suspect or not selection.keep.any():
         low = ~(height >= MIN_HEIGHT_AGL_M)
         k = int(np.argmin(height))

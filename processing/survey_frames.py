@@ -7,10 +7,14 @@ open false gaps, and put a GSD of 0.03 cm at the bottom of the report's range. T
 heights above the ground chosen for the check (:mod:`processing.inputs`) and the positions:
 
 - at most :data:`ON_GROUND_M` above the ground: on the ground (take-off, landing, the pad);
-- below :data:`LOW_RATIO` x the median height of the airborne frames: climbing, descending
-  or in transit below the survey height;
+- more than (1 - :data:`LOW_RATIO`) x the median height below the median altitude of the
+  airborne frames: climbing, descending or in transit below the survey height (on flat ground:
+  lower than :data:`LOW_RATIO` x the median height; a frame low over a hill at the survey
+  altitude stays a survey frame);
 - (images only, not a plan's stations) further from the nearest other frame than
   :data:`ISOLATED_RATIO` x the median nearest-frame distance and two frame lengths: in transit.
+
+A plan's stations are all survey frames: only the ground check applies to them.
 
 When more than a third of the frames would be left out by height, or a frame is more than
 :data:`ON_GROUND_M` under the ground, the ground is wrong, not the frames (an elevation in the
@@ -63,27 +67,35 @@ def select_survey_frames(
     height_agl_m: NDArray[np.float64],
     xy_m: NDArray[np.float64] | None = None,
     frame_length_m: float | None = None,
+    alt_m: NDArray[np.float64] | None = None,
 ) -> SurveySelection:
     """Apply the module's rules. ``height_agl_m``: (N,) camera heights above the ground;
     ``xy_m``: (N, 2) camera positions in metres (None: no transit rule); ``frame_length_m``:
-    a frame's longer ground side at the median height (the transit rule's least distance)."""
+    a frame's longer ground side at the median height (the transit rule's least distance);
+    ``alt_m``: (N,) camera altitudes in any one reference (None: the heights). The low-frame
+    rule is on the altitude: a frame more than (1 - LOW_RATIO) x the median height below the
+    block's median altitude is climbing or descending, while a frame low over a hill at the
+    survey altitude is a survey frame (its finer GSD and lower overlap are real)."""
     h = np.asarray(height_agl_m, dtype=np.float64)
+    alt = h if alt_m is None else np.asarray(alt_m, dtype=np.float64)
     n = h.size
     keep = np.ones(n, dtype=bool)
     reasons: list[tuple[int, str]] = []
     airborne = h > ON_GROUND_M
     median = float(np.median(h[airborne])) if airborne.any() else float(np.median(h)) if n else 0.0
+    median_alt = float(np.median(alt[airborne])) if airborne.any() else float(np.median(alt)) if n else 0.0
     for k in range(n):
         if not airborne[k]:
             keep[k] = False
             reasons.append((k, f"on the ground: {h[k]:.1f} m above it (take-off, landing or the pad)"))
-        elif h[k] < LOW_RATIO * median:
+        elif median_alt - alt[k] > (1.0 - LOW_RATIO) * median:
             keep[k] = False
             reasons.append(
                 (
                     k,
-                    f"below the survey height: {h[k]:.1f} m above the ground, the block's median is "
-                    f"{median:.1f} m (climbing, descending or in transit)",
+                    f"below the survey height: {h[k]:.1f} m above the ground, {median_alt - alt[k]:.1f} m "
+                    f"under the block's median altitude (median height {median:.1f} m): climbing, "
+                    "descending or in transit",
                 )
             )
     by_height = int((~keep).sum())
