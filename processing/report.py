@@ -517,6 +517,12 @@ def report_html(result: CheckResult, *, refly: SurveyPlan | None = None) -> str:
         flagged = _table(["frame", "flag", "detail"], [[f.name, f.kind, f.detail] for f in result.flagged])
     else:
         flagged = "<p>No frame flagged.</p>"
+    if result.left_out:
+        left_out = "<h2>Frames left out</h2>" + _table(
+            ["frame", "why"], [list(item) for item in result.left_out]
+        )
+    else:
+        left_out = ""
     notes = "".join(f"<li>{_e(n)}</li>" for n in result.notes)
     thresholds = ", ".join(f"{k} = {v:g}" for k, v in result.thresholds.as_dict().items())
     refly_html = ""
@@ -559,6 +565,7 @@ def report_html(result: CheckResult, *, refly: SurveyPlan | None = None) -> str:
 {refly_html}
 <h2>Flagged frames</h2>
 {flagged}
+{left_out}
 <h2>How this was computed</h2>
 <ul><li>ground: {_e(result.ground_description)}</li><li>area: {_e(result.area_source)}</li>
 {notes}</ul>
