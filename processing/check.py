@@ -55,6 +55,8 @@ from .verdict import DEFAULT_THRESHOLDS, Thresholds, above, good_base_height, ju
 
 log = logging.getLogger(__name__)
 
+#: Images whose median height differs from the plan's by more than this (and 10 %) are reported, m.
+PLAN_HEIGHT_TOLERANCE_M = 10.0
 #: View counts whose area shares are reported ("seen by at least k frames").
 VIEW_LEVELS = (1, 2, 3, 5, 9)
 #: Codes of :attr:`CheckResult.stereo_class`.
@@ -591,6 +593,16 @@ def run_check(
                 f"median GSD {gsd.median:.2f} cm is more than 10 % coarser than the planned "
                 f"{plan.gsd_cm:.2f} cm: flown higher than planned?"
             )
+        if frames.alt_reference.value in ("amsl", "ellipsoid") and plan.altitude_agl_m > 0:
+            off = median_height - plan.altitude_agl_m
+            if abs(off) > max(PLAN_HEIGHT_TOLERANCE_M, 0.1 * plan.altitude_agl_m):
+                all_warnings.append(
+                    f"the frames are {abs(off):.0f} m {'higher' if off > 0 else 'lower'} above the ground "
+                    f"(median {median_height:.1f} m) than the plan's {plan.altitude_agl_m:.1f} m: flown so, "
+                    "or the camera altitudes are not above mean sea level (an ellipsoidal height is tens of "
+                    "metres off it in most places) or the ground elevation is wrong; heights, GSD and B/H "
+                    f"reported scale with it ({100 * off / plan.altitude_agl_m:+.0f} %)"
+                )
     blurred_frames = (
         [
             (frames.name[k], float(stereo.blur_px[k]))

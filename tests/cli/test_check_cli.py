@@ -208,6 +208,16 @@ def test_the_flown_images_check_agrees_with_the_plan_check(tmp_path: Path) -> No
     for key in ("forward_pct", "side_pct"):
         assert f["overlap"][key]["median"] == pytest.approx(p["overlap"][key]["median"], abs=2.0)
     assert f["height_agl_m"]["median"] == pytest.approx(50.0, abs=0.5)
+    assert not any("than the plan's" in w for w in f["warnings"])
+    # The same photos read as if their altitudes were ellipsoidal heights 33 m under mean sea level
+    # (the geoid at Cleveland): against the plan's 50 m the check reports it with the figures.
+    low = CliRunner().invoke(
+        cli,
+        ["check", str(photos), "--plan", str(tmp_path / "plan"), "--ground-elevation-m", "333",
+         "--cell-m", "1", "--json"],
+    )  # fmt: skip
+    warnings = json.loads(low.stdout)["warnings"]
+    assert any("33 m lower above the ground (median 17.0 m) than the plan's 50.0 m" in w for w in warnings)
 
 
 # --- the plan check is the plan --------------------------------------------------------------------
