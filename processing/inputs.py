@@ -2,10 +2,11 @@
 
 - :func:`read_image_frames` / :func:`frames_from_images`: a folder of geotagged JPEGs. Position
   from EXIF GPS (altitude AMSL), or DJI's XMP relative altitude when every frame carries it;
-  attitude from the Pix4D XMP camera tags when every frame carries them, else nadir with the
-  image top along the track (:attr:`~processing.frames.AttitudeSource.ASSUMED_NADIR`); the camera
-  from EXIF make, model, focal length and image size matched to the database, or given. An image
-  without a position is never guessed: it is listed.
+  attitude from the Pix4D XMP camera tags or DJI's gimbal angles when every frame carries one,
+  else nadir with the image top along the track
+  (:attr:`~processing.frames.AttitudeSource.ASSUMED_NADIR`); the camera from the database, the
+  EXIF geometry or a file (:mod:`processing.image_tags`). An image without a real position, or
+  of another camera or image size than the block's, is never guessed: it is listed, with why.
 - :func:`frames_from_plan`: a folder written by ``sfap plan`` (stations.geojson, summary.json,
   area.geojson): every planned station as a frame, altitudes relative to home.
 - :func:`ground_from_options`: the ground those altitudes are measured against. Height above
@@ -691,7 +692,9 @@ def ground_from_options(
     ground at take-off). Frames relative to home lie over flat ground at home unless a DEM or
     a ground elevation is given, which then needs the take-off elevation to put the frames on
     the same reference (their altitudes are rebased to AMSL). AGL frames lie over flat ground at
-    0. Every frame must end up at least :data:`MIN_HEIGHT_AGL_M` above the ground.
+    0. Frames that are not survey frames over that ground (on the ground, climbing, in transit:
+    :mod:`processing.survey_frames`) are left out and listed in ``GroundChoice.left_out``; a
+    ground that puts many frames at or under it is refused.
     """
     from .ground import DemGround, FlatGround, check_reference
 
