@@ -10,7 +10,8 @@ heights above the ground chosen for the check (:mod:`processing.inputs`) and the
 - more than (1 - :data:`LOW_RATIO`) x the median height below the median altitude of the
   airborne frames: climbing, descending or in transit below the survey height (on flat ground:
   lower than :data:`LOW_RATIO` x the median height; a frame low over a hill at the survey
-  altitude stays a survey frame);
+  altitude stays a survey frame, and so does a frame of a lower pass flown at a level of its
+  own, :data:`LEVEL_BAND_M`);
 - (images only, not a plan's stations) further from the nearest other frame than
   :data:`ISOLATED_RATIO` x the median nearest-frame distance and two frame lengths: in transit.
 
@@ -24,6 +25,7 @@ metres): the check refuses and says so.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -34,6 +36,13 @@ from numpy.typing import NDArray
 ON_GROUND_M = 3.0
 #: A frame lower than this share of the block's median height above ground is not a survey frame.
 LOW_RATIO = 0.5
+#: A low frame that shares its altitude (or its height above ground) within this band with at
+#: least LEVEL_MIN_FRAMES others (and LEVEL_MIN_SHARE of the frames) is on a survey level: a
+#: second, lower pass of a multi-scale block, not a climb (a climb changes altitude every frame).
+LEVEL_BAND_M = 2.0
+LEVEL_BAND_RATIO = 0.02
+LEVEL_MIN_FRAMES = 5
+LEVEL_MIN_SHARE = 0.05
 #: More than this share of the frames left out by height, or any frame more than ON_GROUND_M under
 #: the ground, means the ground is wrong (a card holds a few take-off and landing frames, not a
 #: third of its frames, and no camera flies under the ground).
@@ -51,6 +60,14 @@ def _nearest_other_m(points: NDArray[np.float64]) -> NDArray[np.float64]:
     out = np.full(len(points), np.inf)
     out[src] = dist
     return out
+
+
+def _within(values: NDArray[np.float64], band: float) -> NDArray[np.intp]:
+    """How many other values lie within +-``band`` of each value (sorted search, n log n)."""
+    ordered = np.sort(values)
+    upper = np.searchsorted(ordered, values + band, side="right")
+    lower = np.searchsorted(ordered, values - band, side="left")
+    return np.asarray(upper - lower - 1, dtype=np.intp)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -84,11 +101,14 @@ def select_survey_frames(
     airborne = h > ON_GROUND_M
     median = float(np.median(h[airborne])) if airborne.any() else float(np.median(h)) if n else 0.0
     median_alt = float(np.median(alt[airborne])) if airborne.any() else float(np.median(alt)) if n else 0.0
+    band = max(LEVEL_BAND_M, LEVEL_BAND_RATIO * median)
+    peers = max(LEVEL_MIN_FRAMES, math.ceil(LEVEL_MIN_SHARE * n))
+    on_a_level = (_within(alt, band) >= peers) | (_within(h, band) >= peers)
     for k in range(n):
         if not airborne[k]:
             keep[k] = False
             reasons.append((k, f"on the ground: {h[k]:.1f} m above it (take-off, landing or the pad)"))
-        elif median_alt - alt[k] > (1.0 - LOW_RATIO) * median:
+        elif median_alt - alt[k] > (1.0 - LOW_RATIO) * median and not on_a_level[k]:
             keep[k] = False
             reasons.append(
                 (

@@ -228,3 +228,16 @@ def test_placeholder_position(offset: float, placeholder: bool) -> None:
     assert (position is None) is placeholder
     if placeholder:
         assert "placeholder position at 0/0" in why
+
+
+def test_a_lower_pass_of_a_multi_scale_block_is_not_a_climb() -> None:
+    # 40 frames at 120 m and 20 at 50 m (two flying heights, as the textbook advises: the lower
+    # pass is 70 m under the block's median altitude), and the take-off climb shot every 2 m from
+    # 4 to 14 m: only the climb is left out; the 50 m level of 20 frames is a pass.
+    climb = np.arange(6) * 2.0 + 4.0
+    h = np.concatenate([np.full(40, 120.0), climb, np.full(20, 50.0)])
+    sel = select_survey_frames(h)
+    assert sel.median_height_m == 120.0
+    assert sel.keep[:40].all() and sel.keep[46:].all()
+    assert [k for k, _ in sel.left_out] == list(range(40, 46))
+    assert all("below the survey height" in why for _, why in sel.left_out)
