@@ -388,3 +388,25 @@ def test_a_set_without_gps_says_geotag_first() -> None:
     result = CliRunner().invoke(cli, ["check", str(COPR), "--ground-elevation-m", "0", "--no-progress"])
     assert result.exit_code == 2
     assert "no GPS positions: geotag first" in result.output
+
+
+@pytest.mark.parametrize(("unit", "per_unit_mm"), [("2", 25.4), ("3", 10.0), ("4", 1.0)])
+def test_focal_plane_resolution_in_any_unit_gives_the_same_pixels_per_mm(
+    card: Path, unit: str, per_unit_mm: float
+) -> None:
+    # The Sequoia writes 746.27 px per mm (unit 4); the same density in inches or centimetres.
+    path = card / NAMES[0]
+    _, original = read_tags_and_camera(GARFIELD / NAMES[0])
+    assert original.focal_plane_x_px_per_mm == pytest.approx(2147483647 / 2877628)
+    value = f"{round(2147483647 / 2877628 * per_unit_mm * 1000)}/1000"
+    edit(
+        path,
+        {
+            "Exif.Photo.FocalPlaneXResolution": value,
+            "Exif.Photo.FocalPlaneYResolution": value,
+            "Exif.Photo.FocalPlaneResolutionUnit": unit,
+        },
+    )
+    _, tags = read_tags_and_camera(path)
+    assert tags.focal_plane_x_px_per_mm == pytest.approx(original.focal_plane_x_px_per_mm, rel=1e-6)
+    assert tags.focal_length_35mm_mm == 28.0 and tags.gps_altitude_ref == 0
