@@ -860,6 +860,30 @@ def ground_for_plan(
     )
 
 
+def images_ground(
+    *,
+    frames: Frames,
+    plan: PlanInfo | None,
+    dem: str | os.PathLike[str] | None = None,
+    ground_elevation_m: float | None = None,
+    takeoff_elevation_m: float | None = None,
+) -> GroundChoice:
+    """The ground for images flown from ``plan``: as :func:`ground_from_options`, except that
+    with neither a DEM nor a ground elevation given, a terrain plan's own DEM (found by
+    :func:`plan_dem_path`) is the ground, with the plan's take-off elevation for altitudes
+    relative to home (unless ``takeoff_elevation_m`` is given)."""
+    plan_dem = plan_dem_path(plan) if plan is not None else None
+    if dem is None and ground_elevation_m is None and plan is not None and plan_dem is not None:
+        takeoff = takeoff_elevation_m
+        if takeoff is None and frames.alt_reference is AltitudeReference.REL_HOME:
+            takeoff = plan_takeoff_elevation_m(plan)
+        choice = ground_from_options(frames=frames, dem=plan_dem, takeoff_elevation_m=takeoff)
+        return replace(choice, description=f"{choice.description} (the plan's own DEM)")
+    return ground_from_options(
+        frames=frames, dem=dem, ground_elevation_m=ground_elevation_m, takeoff_elevation_m=takeoff_elevation_m
+    )
+
+
 def _dem_elevation_at_home(dem: Path, info: PlanInfo) -> float | None:
     """The ground elevation (m AMSL) at the plan's home on ``dem``: the take-off point is on the
     ground. None when the plan records no home or the DEM does not cover it."""

@@ -17,8 +17,8 @@ from processing.inputs import (
     PlanInfo,
     frames_from_plan,
     ground_for_plan,
-    ground_from_options,
     image_paths,
+    images_ground,
     is_plan_folder,
     read_image_frames,
     read_plan_info,
@@ -198,8 +198,9 @@ def command(
         )
         warnings, left_out = images.warnings, images.left_out
         camera_source = images.camera_source
-        choice = ground_from_options(
+        choice = images_ground(
             frames=frames,
+            plan=plan,
             dem=dem,
             ground_elevation_m=ground_elevation_m,
             takeoff_elevation_m=takeoff_elevation_m,

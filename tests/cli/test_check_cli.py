@@ -296,3 +296,21 @@ def test_a_flat_plan_with_a_dem_takes_off_from_the_dem(plans: tuple[Path, Path])
     assert "take-off elevation the DEM's at the plan's home" in data["ground"]
     # Flown flat over rising ground: the check sees the plan fail where the ground comes up.
     assert result.exit_code == 1 and data["height_agl_m"]["min"] < 20.0
+
+
+def test_images_flown_from_a_terrain_plan_use_its_dem(terrain_plan: Path, tmp_path: Path) -> None:
+    from processing.inputs import frames_from_plan, frames_local_frame, images_ground
+
+    plan = tmp_path / "plan"
+    shutil.copytree(terrain_plan, plan)
+    dem = MISSIONS / "bardenas-gully-dem.tif"
+    shutil.copy(dem, plan / dem.name)
+    # Frames at the stations, altitudes relative to home as a DJI's RelativeAltitude would be.
+    frames, info = frames_from_plan(plan)
+    choice = images_ground(frames=frames, plan=info)
+    assert choice.description.endswith("(the plan's own DEM)")
+    assert "take-off point at 313.691 m AMSL" in choice.description
+    frame = frames_local_frame(choice.frames)
+    x, y = frame.to_xy(choice.frames.lon_deg, choice.frames.lat_deg)
+    heights = choice.frames.alt_m - choice.ground.elevation_at(x, y, frame)
+    np.testing.assert_allclose(heights, _dem_heights_m(plan, dem), atol=0.02)
