@@ -74,7 +74,8 @@ def _thresholds(values: tuple[str, ...]) -> Thresholds:
 @click.option(
     "--dem",
     type=click.Path(exists=True, dir_okay=False, path_type=Path),
-    help="Ground elevations, GeoTIFF in any CRS, metres above mean sea level.",
+    help="Ground elevations, GeoTIFF in any CRS, metres above mean sea level (with a plan folder no "
+    "--takeoff-elevation-m is needed).",
 )
 @click.option(
     "--ground-elevation-m",
@@ -151,8 +152,9 @@ def command(
     check never guesses the height above ground); DJI's relative altitudes are above take-off.
     Frames without a real position, of another camera or image size, or not taken on the survey
     (on the ground, climbing, in transit) are left out and listed. A plan is judged on its own
-    ground: a terrain plan on its DEM and take-off elevation (--dem to give the DEM), a flat
-    plan on flat ground at home.
+    ground: a terrain plan on its DEM (found in the plan folder, or --dem) and take-off
+    elevation, a flat plan on flat ground at home, or on --dem from the DEM's elevation at
+    home; images flown from a terrain plan (--plan) use its DEM when no ground is given.
 
     Exit code 0 when every threshold is met, 1 when the check fails (the reasons are
     printed), 2 for bad options or inputs.
