@@ -16,13 +16,18 @@ import numpy as np
 import pyexiv2
 import pytest
 from click.testing import CliRunner
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from PIL import Image
 from shared_data import SHARED_DATA
+from test_footprints import CAMERA, FRAME, ORIGIN_X_M, ORIGIN_Y_M, make_frames
 
 from acquisition.exif import read_tags_and_camera
 from planner.camera_db import get_camera
 from processing.check import run_check
-from processing.footprints import world_from_camera
+from processing.footprints import project_footprints, world_from_camera
+from processing.frames import AltitudeReference
+from processing.ground import FlatGround
 from processing.image_tags import (
     FULL_FRAME_DIAGONAL_MM,
     CameraConfidence,
@@ -410,3 +415,33 @@ def test_focal_plane_resolution_in_any_unit_gives_the_same_pixels_per_mm(
     _, tags = read_tags_and_camera(path)
     assert tags.focal_plane_x_px_per_mm == pytest.approx(original.focal_plane_x_px_per_mm, rel=1e-6)
     assert tags.focal_length_35mm_mm == 28.0 and tags.gps_altitude_ref == 0
+
+
+@settings(max_examples=80, deadline=None)
+@given(
+    yaw=st.floats(-180, 180),
+    pitch=st.floats(-90, -55),
+    roll=st.floats(-5, 5),
+    height=st.floats(30, 300),
+)
+def test_dji_gimbal_footprints_agree_with_a_ray_cast_from_djis_definition(
+    yaw: float, pitch: float, roll: float, height: float
+) -> None:
+    # Oracle: the gimbal frame (x the optical axis, y the image's right, z the image's bottom)
+    # turned by DJI's NED Rz(yaw) Ry(pitch) Rx(roll), each sensor corner's ray to flat ground.
+    y, p, r = (math.radians(v) for v in (yaw, pitch, roll))
+    rz = np.array([[math.cos(y), -math.sin(y), 0], [math.sin(y), math.cos(y), 0], [0, 0, 1]])
+    ry = np.array([[math.cos(p), 0, math.sin(p)], [0, 1, 0], [-math.sin(p), 0, math.cos(p)]])
+    rx = np.array([[1, 0, 0], [0, math.cos(r), -math.sin(r)], [0, math.sin(r), math.cos(r)]])
+    enu_from_ned = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
+    w, h, f = CAMERA.sensor_width_mm / 2, CAMERA.sensor_height_mm / 2, CAMERA.focal_length_mm
+    corners_gimbal = np.array([[f, -w, -h], [f, w, -h], [f, w, h], [f, -w, h]])  # TL, TR, BR, BL
+    rays = corners_gimbal @ (enu_from_ned @ rz @ ry @ rx).T
+    expected = rays[:, :2] * (height / -rays[:, 2])[:, None]
+    fp = project_footprints(
+        make_frames(ORIGIN_X_M, ORIGIN_Y_M, height, *pix4d_from_dji_gimbal(yaw, pitch, roll)),
+        FRAME,
+        FlatGround(elevation_m=0.0, reference=AltitudeReference.AMSL),
+        edge_samples=0,
+    )
+    np.testing.assert_allclose(fp.xy_m[0] - [ORIGIN_X_M, ORIGIN_Y_M], expected, atol=0.01)
