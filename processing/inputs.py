@@ -433,9 +433,9 @@ def frames_from_tags(
         line_index=None,
     )
     if left_out:
-        notes.append(
-            f"{len(left_out)} image(s) left out: " + "; ".join(f"{name}: {why}" for name, why in left_out)
-        )
+        shown = "; ".join(f"{name}: {why}" for name, why in left_out[:10])
+        more = f"; and {len(left_out) - 10} more (report.json lists them all)" if len(left_out) > 10 else ""
+        notes.append(f"{len(left_out)} image(s) left out: {shown}{more}")
     return ImageFrames(
         frames=frames,
         unpositioned=tuple(unpositioned),
