@@ -229,12 +229,14 @@ _LABEL_DIRECTIONS = ((0, 1), (1, 0), (0, -1), (-1, 0), (1, 1), (-1, 1), (1, -1),
 
 def _text_box(label: Any, renderer: Any) -> Any:
     """The window extent of an annotation's text and its frame, without the leader line."""
+    label.update_positions(renderer)  # the text's place in display coordinates, as drawn
     return MplText.get_window_extent(label, renderer).expanded(1.3, 1.3)
 
 
 def place_labels(ax: Any, anchors: Sequence[tuple[float, float]], texts: Sequence[str]) -> list[Any]:
     """Label each anchor (data coordinates) so that no two labels overlap: a label that would
-    overlap one already placed moves out in rings of 14 pt around its anchor, with a leader line.
+    overlap one already placed moves out in rings of 14 pt around its anchor, with a leader line,
+    to a place inside the map.
     Labels are placed in the order given (the largest gap first keeps its place). Returns the
     annotations."""
     figure = ax.figure
@@ -251,16 +253,24 @@ def place_labels(ax: Any, anchors: Sequence[tuple[float, float]], texts: Sequenc
         "zorder": 8,
         "bbox": {"boxstyle": "round,pad=0.15", "facecolor": "white", "edgecolor": _GAP_COLOUR, "lw": 0.8},
     }
+    inside = ax.get_window_extent(renderer)
+
+    def clashes(box: Any) -> bool:
+        # Another label in the way, or a place (partly) outside the map.
+        return any(box.overlaps(other) for other in boxes) or not (
+            inside.x0 <= box.x0 and box.x1 <= inside.x1 and inside.y0 <= box.y0 and box.y1 <= inside.y1
+        )
+
     for (x, y), text in zip(anchors, texts, strict=True):
         label = ax.annotate(text, (x, y), xytext=(0, 0), textcoords="offset points", **style)
         box = _text_box(label, renderer)
         ring = 0
-        while any(box.overlaps(other) for other in boxes) and ring < 12:
+        while clashes(box) and ring < 12:
             ring += 1
             for dx, dy in _LABEL_DIRECTIONS:
                 label.set_position((14 * ring * dx, 14 * ring * dy))
                 box = _text_box(label, renderer)
-                if not any(box.overlaps(other) for other in boxes):
+                if not clashes(box):
                     break
         if ring:
             label.remove()
