@@ -181,8 +181,12 @@ def _position(t: ImageTags, relative: bool) -> tuple[tuple[float, float, float] 
 
 
 def _camera_key(t: ImageTags) -> tuple[Any, ...]:
+    # A frame written in portrait (width and height swapped) is the same camera and size.
     focal = known(t.focal_length_mm)
-    return (t.make, t.model, None if focal is None else round(focal, 2), t.width_px, t.height_px)
+    w, h = t.width_px, t.height_px
+    if w is not None and h is not None and h > w:
+        w, h = h, w
+    return (t.make, t.model, None if focal is None else round(focal, 2), w, h)
 
 
 def _describe_key(key: tuple[Any, ...]) -> str:
