@@ -453,6 +453,95 @@ def tags_from_maps(
 
 
 # --------------------------------------------------------------------------------------------
+# Reading, continued: camera-geometry and DJI attitude tags (added for the field check, issue 9;
+# read side only, kept apart from read_tags so the two can be merged independently)
+
+#: EXIF FocalPlaneResolutionUnit -> millimetres per unit (1 "no unit" is left unknown).
+_FOCAL_PLANE_UNIT_MM = {2: 25.4, 3: 10.0, 4: 1.0, 5: 0.001}
+
+
+@dataclass(frozen=True, kw_only=True)
+class CameraTags:
+    """What a frame says about its camera's geometry and a DJI gimbal's attitude; absent -> None.
+
+    - ``focal_plane_x_px_per_mm`` / ``_y_``: EXIF FocalPlaneX/YResolution converted with
+      FocalPlaneResolutionUnit (2 inch, 3 cm, 4 mm, 5 um) to pixels per millimetre.
+    - ``focal_length_35mm_mm``: EXIF FocalLengthIn35mmFilm (0 means unknown: None).
+    - ``gimbal_*_deg``: DJI XMP ``drone-dji:GimbalYawDegree/GimbalPitchDegree/GimbalRollDegree``
+      (earth-referenced; pitch -90 is nadir); ``flight_*_deg``: ``FlightYaw/Pitch/RollDegree``.
+    - ``gps_altitude_ref``: EXIF GPSAltitudeRef as written (0 above, 1 below sea level).
+    """
+
+    focal_plane_x_px_per_mm: float | None = None
+    focal_plane_y_px_per_mm: float | None = None
+    focal_length_35mm_mm: float | None = None
+    gimbal_yaw_deg: float | None = None
+    gimbal_pitch_deg: float | None = None
+    gimbal_roll_deg: float | None = None
+    flight_yaw_deg: float | None = None
+    flight_pitch_deg: float | None = None
+    flight_roll_deg: float | None = None
+    gps_altitude_ref: int | None = None
+
+
+def camera_tags_from_maps(exif: dict[str, Any], xmp: dict[str, Any]) -> CameraTags:
+    """Build :class:`CameraTags` from pyexiv2's key -> text maps."""
+
+    def get(key: str) -> str | None:
+        value = exif.get(key, xmp.get(key))
+        if isinstance(value, list):
+            value = value[0] if value else None
+        return None if value is None else str(value).strip()
+
+    unit_text = get("Exif.Photo.FocalPlaneResolutionUnit")
+    unit_mm = _FOCAL_PLANE_UNIT_MM.get(int(unit_text)) if unit_text and unit_text.isdigit() else None
+
+    def per_mm(key: str) -> float | None:
+        text = get(key)
+        value = _rational(text) if text else None
+        if value is None or unit_mm is None or not value > 0:
+            return None
+        return value / unit_mm
+
+    f35_text = get("Exif.Photo.FocalLengthIn35mmFilm")
+    f35 = _float(f35_text) if f35_text else None
+    ref_text = get("Exif.GPSInfo.GPSAltitudeRef")
+    return CameraTags(
+        focal_plane_x_px_per_mm=per_mm("Exif.Photo.FocalPlaneXResolution"),
+        focal_plane_y_px_per_mm=per_mm("Exif.Photo.FocalPlaneYResolution"),
+        focal_length_35mm_mm=f35 if f35 is not None and f35 > 0 else None,
+        gimbal_yaw_deg=_float(get("Xmp.drone-dji.GimbalYawDegree")),
+        gimbal_pitch_deg=_float(get("Xmp.drone-dji.GimbalPitchDegree")),
+        gimbal_roll_deg=_float(get("Xmp.drone-dji.GimbalRollDegree")),
+        flight_yaw_deg=_float(get("Xmp.drone-dji.FlightYawDegree")),
+        flight_pitch_deg=_float(get("Xmp.drone-dji.FlightPitchDegree")),
+        flight_roll_deg=_float(get("Xmp.drone-dji.FlightRollDegree")),
+        gps_altitude_ref=int(ref_text) if ref_text and ref_text.isdigit() else None,
+    )
+
+
+def read_tags_and_camera(path: str | os.PathLike[str]) -> tuple[ImageTags, CameraTags]:
+    """:func:`read_tags` and :class:`CameraTags` of one JPEG from one read of its metadata."""
+    _register_namespaces()
+    with open(path, "rb") as handle:
+        head = handle.read(2)
+    if head != b"\xff\xd8":
+        raise GeotagError(f"{path}: not a JPEG file (no SOI marker); remove it from the folder")
+    try:
+        image = pyexiv2.Image(os.fspath(path))
+    except (RuntimeError, ValueError, OSError) as error:
+        raise GeotagError(f"{path}: not a readable image ({error}); remove or replace it") from error
+    try:
+        exif, xmp = _read_maps(image, path)
+        width = image.get_pixel_width() or None
+        height = image.get_pixel_height() or None
+    finally:
+        image.close()
+    tags = tags_from_maps(str(path), exif, xmp, width_px=width, height_px=height)
+    return tags, camera_tags_from_maps(exif, xmp)
+
+
+# --------------------------------------------------------------------------------------------
 # Writing
 
 

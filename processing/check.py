@@ -23,8 +23,10 @@ The check works in metres in a transverse Mercator frame centred on the frames
 is a true bearing, and in a UTM zone (grid north up to 3 deg off) every footprint would turn
 about its camera and open false gaps along the area's edges.
 
-Gaps are the connected parts of the area seen by no frame, smaller ones than
-``Thresholds.min_gap_area_m2`` dropped (raster crumbs along footprint edges).
+Gaps are the connected parts of the area seen by no frame, computed on the footprints
+themselves (:func:`exact_gaps`: a sliver is one gap with its true area), smaller ones than
+``Thresholds.min_gap_area_m2`` dropped (crumbs where footprint corners meet). Shares of the
+area seen come from the view-count raster.
 """
 
 from __future__ import annotations
@@ -49,10 +51,12 @@ from .footprints import Footprints
 from .frames import AttitudeSource, Frames
 from .ground import Ground
 from .inputs import PlanInfo, frames_local_frame
-from .verdict import DEFAULT_THRESHOLDS, Thresholds, judge
+from .verdict import DEFAULT_THRESHOLDS, Thresholds, above, good_base_height, judge
 
 log = logging.getLogger(__name__)
 
+#: Images whose median height differs from the plan's by more than this (and 10 %) are reported, m.
+PLAN_HEIGHT_TOLERANCE_M = 10.0
 #: View counts whose area shares are reported ("seen by at least k frames").
 VIEW_LEVELS = (1, 2, 3, 5, 9)
 #: Codes of :attr:`CheckResult.stereo_class`.
@@ -166,13 +170,31 @@ class CheckResult:
     blur_px: NDArray[np.float64] | None
     flagged: tuple[FrameFlag, ...]
     plan: PlanInfo | None = None
+    pair_along_line: NDArray[np.bool_] | None = None
+    pair_across_lines: NDArray[np.bool_] | None = None
     unpositioned: tuple[str, ...] = ()
+    left_out: tuple[tuple[str, str], ...] = ()
+    camera_source: str = ""
     stats: dict[str, Any] = field(default_factory=dict)
 
     @property
     def exit_code(self) -> int:
         """0 when the check passed, 1 when it failed."""
         return 0 if self.passed else 1
+
+    @property
+    def base_height_along_line(self) -> Distribution | None:
+        """B/H of consecutive frames of a line (the forward-overlap pairs)."""
+        if self.pair_along_line is None:
+            return None
+        return Distribution.of(self.pair_base_height_ratio[self.pair_along_line])
+
+    @property
+    def base_height_across_lines(self) -> Distribution | None:
+        """B/H of pairs of frames on different lines (the side-overlap pairs)."""
+        if self.pair_across_lines is None:
+            return None
+        return Distribution.of(self.pair_base_height_ratio[self.pair_across_lines])
 
     @property
     def gap_area_m2(self) -> float:
@@ -185,6 +207,7 @@ class CheckResult:
                 "frames",
                 f"{len(self.frames)} ({self.frames.camera.id}, attitude {self.frames.attitude_source.value})",
             ),
+            *([("camera", self.camera_source)] if self.camera_source else []),
             ("ground", self.ground_description),
             ("area", f"{self.area_m2 / 1e4:.2f} ha ({self.area_source}), cells {self.cell_m:g} m"),
             (
@@ -205,12 +228,23 @@ class CheckResult:
             if planned is not None:
                 text += f", planned {planned:g} %"
             rows.append((label, text))
-        bh = Distribution.of(self.pair_base_height_ratio)
-        if bh is not None:
-            text = f"median {bh.median:.2f} over {bh.count} pairs"
-            if self.good_pair_pct is not None:
-                text += f"; {self.good_pair_pct:.1f} % of the area has a pair in range"
-            rows.append(("base-height ratio", text))
+        for label, dist in (
+            ("B/H along lines", self.base_height_along_line),
+            ("B/H across lines", self.base_height_across_lines),
+        ):
+            if dist is None:
+                rows.append((label, "no such pair"))
+            else:
+                text = f"median {dist.median:.2f} (10-90 %: {dist.p10:.2f}-{dist.p90:.2f})"
+                rows.append((label, f"{text} over {dist.count} pairs"))
+        if self.good_pair_pct is not None:
+            rows.append(
+                (
+                    "stereo",
+                    f"{self.good_pair_pct:.1f} % of the area has a pair with B/H in "
+                    f"{self.thresholds.min_base_height_ratio:g}-{self.thresholds.max_base_height_ratio:g}",
+                )
+            )
         gsd = Distribution.of(self.gsd_cm)
         if gsd is not None:
             rows.append(("GSD", f"median {gsd.median:.2f} cm ({gsd.min:.2f}-{gsd.max:.2f} cm)"))
@@ -232,9 +266,13 @@ class CheckResult:
         elif self.blur_px is None:
             rows.append(("motion blur", "not computed (no exposure time in the images or the camera)"))
         elif blur is None:
-            rows.append(("motion blur", "unknown (no frame has a measured speed)"))
+            rows.append(("motion blur", "blur not computed for any frame (speed or exposure unknown)"))
         else:
-            rows.append(("motion blur", f"median {blur.median:.2f} px, max {blur.max:.2f} px"))
+            unknown_blur = int(np.isnan(self.blur_px).sum())
+            text = f"median {blur.median:.2f} px, max {blur.max:.2f} px (where worst in each frame)"
+            if unknown_blur:
+                text += f"; blur not computed for {unknown_blur} frames (speed or exposure unknown)"
+            rows.append(("motion blur", text))
         rows.append(
             (
                 "convergent frames",
@@ -279,9 +317,11 @@ class CheckResult:
                 "count": len(frames),
                 "camera_id": frames.camera.id,
                 "camera_name": frames.camera.name,
+                "camera_source": self.camera_source or None,
                 "attitude_source": frames.attitude_source.value,
                 "altitude_reference": frames.alt_reference.value,
                 "unpositioned": list(self.unpositioned),
+                "left_out": [{"name": name, "reason": why} for name, why in self.left_out],
             },
             "ground": self.ground_description,
             "area": {
@@ -314,6 +354,12 @@ class CheckResult:
             "stereo": {
                 "pair_count": int(self.pair_index.shape[0]),
                 "base_height_ratio": bh.as_dict() if bh else None,
+                "base_height_ratio_along_line": (
+                    d.as_dict() if (d := self.base_height_along_line) is not None else None
+                ),
+                "base_height_ratio_across_lines": (
+                    d.as_dict() if (d := self.base_height_across_lines) is not None else None
+                ),
                 "intersection_angle_deg": angle.as_dict() if angle else None,
                 "good_pair_area_pct": self.good_pair_pct,
                 "convergent_frames_pct": self.convergent_pct,
@@ -377,6 +423,21 @@ def block_area_xy(centres_xy: NDArray[np.float64], footprint_short_side_m: float
     return hull
 
 
+def exact_gaps(
+    area_xy: Polygon | MultiPolygon, footprints: Sequence[Any] | NDArray[np.object_], *, min_area_m2: float
+) -> list[Polygon]:
+    """The gaps as they are, not as the raster sees them: the connected parts of the area that no
+    footprint covers (area minus the union of the footprints), at least ``min_area_m2`` each,
+    largest first. A sliver between two footprints that cuts across cells diagonally is one gap
+    with its true area here; on the raster it would be a chain of cells that touch at corners
+    (counted as many gaps) or none at all."""
+    union = shapely.union_all(shapely.make_valid(np.asarray(footprints, dtype=object)))
+    uncovered = shapely.make_valid(area_xy.difference(union))
+    parts = [g for g in shapely.get_parts(uncovered) if isinstance(g, Polygon) and g.area >= min_area_m2]
+    parts.sort(key=lambda p: p.area, reverse=True)
+    return parts
+
+
 def run_check(
     frames: Frames,
     *,
@@ -389,6 +450,9 @@ def run_check(
     ground_description: str | None = None,
     notes: Sequence[str] = (),
     unpositioned: Sequence[str] = (),
+    left_out: Sequence[tuple[str, str]] = (),
+    warnings: Sequence[str] = (),
+    camera_source: str = "",
 ) -> CheckResult:
     """Check ``frames`` over ``ground`` (same altitude reference; see
     :func:`processing.inputs.ground_from_options`) and judge them against ``thresholds``.
@@ -397,13 +461,13 @@ def run_check(
     docstring). ``plan``: the plan the frames were meant to follow (its overlaps are the
     reference of the overlap checks). ``cell_m``: raster cell size in metres (None:
     :func:`default_cell_m`). ``progress(done, total)``: called while the view counts are
-    rasterized (the long part). ``notes`` and ``unpositioned`` (image names left out) go into
-    the report as they are.
+    rasterized (the long part). ``notes``, ``warnings``, ``unpositioned`` (image names without a
+    position) and ``left_out`` ((name, reason) of every frame not checked: no position, another
+    camera, not a survey frame) go into the report as they are.
     """
     from .coverage import (
         area_mask,
         coverage_stats,
-        gap_polygons,
         min_value_raster,
         view_count_raster,
     )
@@ -411,7 +475,7 @@ def run_check(
 
     if len(frames) == 0:
         raise ProcessingError("there is no frame to check")
-    warnings: list[str] = []
+    all_warnings: list[str] = list(warnings)
     all_notes = list(notes)
     frame = frames_local_frame(frames)
     fp = project_footprints(frames, frame, ground)
@@ -474,7 +538,7 @@ def run_check(
     seen_pct = {k: float(stats["seen_by_at_least_pct"][str(k)]) for k in VIEW_LEVELS}
     gaps: list[Gap] = []
     for k, polygon in enumerate(
-        gap_polygons(counts, in_area, grid, min_views=1, min_area_m2=thresholds.min_gap_area_m2),
+        exact_gaps(area_xy, fp.polygons()[valid], min_area_m2=thresholds.min_gap_area_m2),
         start=1,
     ):
         lonlat = frame.geometry_to_lonlat(polygon)
@@ -493,32 +557,66 @@ def run_check(
     gsd_raster = min_value_raster(rings, fp.gsd_cm[valid], grid)
 
     stereo = _stereo(frames, fp, ground, frame, grid, in_area, thresholds)
-    warnings.extend(stereo.warnings)
+    all_warnings.extend(stereo.warnings)
     all_notes.extend(stereo.notes)
     flagged.extend(stereo.flagged)
 
+    from .survey_frames import altitude_drift_warning
+
+    drift = altitude_drift_warning(frames.alt_m, frames.time_utc_s, median_height, frames.alt_reference.value)
+    if drift is not None:
+        all_warnings.append(drift)
     if frames.attitude_source is AttitudeSource.ASSUMED_NADIR:
-        warnings.append(
+        all_warnings.append(
             "the images carry no attitude: every frame was taken as nadir with the image top along the "
             "track; tilted frames would shift the footprints"
         )
-    if unpositioned:
-        warnings.append(
+    if left_out:
+        all_warnings.append(
+            f"{len(left_out)} frame(s) left out of coverage, GSD and scale figures: "
+            + "; ".join(f"{name} ({why})" for name, why in left_out[:10])
+            + (f"; and {len(left_out) - 10} more (report.json)" if len(left_out) > 10 else "")
+        )
+    elif unpositioned:
+        all_warnings.append(
             f"{len(unpositioned)} image(s) without a position were left out: {', '.join(unpositioned)}"
         )
     if stereo.doming_risk:
-        warnings.append(
+        all_warnings.append(
             f"only {stereo.convergent_pct:.0f} % of the frames are convergent (oblique): a nadir-only block "
             "risks the doming effect (James and Robson 2014); add oblique frames or a crosshatch pass"
         )
     if plan is not None:
         gsd = Distribution.of(fp.gsd_cm[valid])
         if gsd is not None and gsd.median > 1.1 * plan.gsd_cm:
-            warnings.append(
+            all_warnings.append(
                 f"median GSD {gsd.median:.2f} cm is more than 10 % coarser than the planned "
                 f"{plan.gsd_cm:.2f} cm: flown higher than planned?"
             )
-    blurred = sum(1 for f in flagged if f.kind == "blur")
+        if frames.alt_reference.value in ("amsl", "ellipsoid") and plan.altitude_agl_m > 0:
+            off = median_height - plan.altitude_agl_m
+            if abs(off) > max(PLAN_HEIGHT_TOLERANCE_M, 0.1 * plan.altitude_agl_m):
+                all_warnings.append(
+                    f"the frames are {abs(off):.0f} m {'higher' if off > 0 else 'lower'} above the ground "
+                    f"(median {median_height:.1f} m) than the plan's {plan.altitude_agl_m:.1f} m: flown so, "
+                    "or the camera altitudes are not above mean sea level (an ellipsoidal height is tens of "
+                    "metres off it in most places) or the ground elevation is wrong; heights, GSD and B/H "
+                    f"reported scale with it ({100 * off / plan.altitude_agl_m:+.0f} %)"
+                )
+    blurred_frames = (
+        [
+            (frames.name[k], float(stereo.blur_px[k]))
+            for k in np.flatnonzero(above(stereo.blur_px, thresholds.fail_blur_px))
+        ]
+        if stereo.blur_px is not None
+        else []
+    )
+    warned = [f for f in flagged if f.kind == "blur"]
+    if warned:
+        all_warnings.append(
+            f"{len(warned)} frame(s) with motion blur above {thresholds.max_blur_px:g} px (flagged frames), "
+            f"{len(blurred_frames)} of them above {thresholds.fail_blur_px:g} px"
+        )
     reasons = judge(
         thresholds=thresholds,
         seen_pct=seen_pct,
@@ -527,7 +625,8 @@ def run_check(
         side_overlap_pct=stereo.side_overlap_pct,
         plan=plan,
         good_pair_pct=stereo.good_pair_pct,
-        blurred_count=blurred,
+        blurred_count=len(blurred_frames),
+        blurred_frames=blurred_frames,
         frame_count=len(frames),
         blur_unknown_count=(int(np.isnan(stereo.blur_px).sum()) if stereo.blur_px is not None else 0),
     )
@@ -535,7 +634,7 @@ def run_check(
     return CheckResult(
         passed=not reasons,
         reasons=reasons,
-        warnings=tuple(warnings),
+        warnings=tuple(all_warnings),
         notes=tuple(all_notes),
         thresholds=thresholds,
         frames=frames,
@@ -563,6 +662,8 @@ def run_check(
         pair_index=stereo.pair_index,
         pair_base_height_ratio=stereo.pair_base_height_ratio,
         pair_intersection_deg=stereo.pair_intersection_deg,
+        pair_along_line=stereo.pair_along_line,
+        pair_across_lines=stereo.pair_across_lines,
         good_pair_pct=stereo.good_pair_pct,
         stereo_class=stereo.stereo_class,
         convergent_pct=stereo.convergent_pct,
@@ -572,6 +673,8 @@ def run_check(
         flagged=tuple(flagged),
         plan=plan,
         unpositioned=tuple(unpositioned),
+        left_out=tuple(left_out),
+        camera_source=camera_source,
         stats={
             "views_median": stats["views_median"],
             "views_max": stats["views_max"],
@@ -589,6 +692,8 @@ class _Stereo:
     pair_index: NDArray[np.int64]
     pair_base_height_ratio: NDArray[np.float64]
     pair_intersection_deg: NDArray[np.float64]
+    pair_along_line: NDArray[np.bool_]
+    pair_across_lines: NDArray[np.bool_]
     good_pair_pct: float | None
     stereo_class: NDArray[np.int8]
     convergent_pct: float
@@ -620,22 +725,25 @@ def _stereo(
         motion_blur,
         off_nadir_deg,
         overlapping_pairs,
+        pair_kinds,
         scale_outliers,
         side_overlaps_pct,
     )
 
     pairs = overlapping_pairs(fp, ground, frame)
     lines = flight_lines(frames, fp)
+    along, across = pair_kinds(frames, pairs, lines)
     bh = pairs.base_height_ratio
     lo, hi = thresholds.min_base_height_ratio, thresholds.max_base_height_ratio
     classes = np.full(grid.shape, STEREO_NONE, dtype=np.int8)
     good_pct: float | None = None
     if len(pairs):
         # Later classes win: a cell with any good pair is good, else wide, else weak.
+        good = good_base_height(bh, thresholds)
         for code, select in (
-            (STEREO_WEAK, bh < lo),
-            (STEREO_WIDE, bh > hi),
-            (STEREO_GOOD, (bh >= lo) & (bh <= hi)),
+            (STEREO_WEAK, ~good & (bh < lo)),
+            (STEREO_WIDE, ~good & (bh > hi)),
+            (STEREO_GOOD, good),
         ):
             if select.any():
                 classes[count_raster(list(pairs.intersection[select]), grid) > 0] = code
@@ -654,19 +762,31 @@ def _stereo(
                 ),
             )
         )
-    blur = motion_blur(frames, fp, lines)
+    ring = fp.xy_m
+    ground_z = np.asarray(
+        ground.elevation_at(ring[..., 0].ravel(), ring[..., 1].ravel(), frame), dtype=np.float64
+    ).reshape(ring.shape[:2])
+    blur = motion_blur(frames, fp, lines, ground_z_m=ground_z)
     speed = blur.speed_m_s if blur is not None else None
     blur_px = blur.blur_px if blur is not None else None
     notes: list[str] = []
     if blur is not None and blur.blur_px is not None and blur.exposure_s is not None:
-        for k in np.flatnonzero(np.nan_to_num(blur.blur_px, nan=0.0) > thresholds.max_blur_px):
+        for k in np.flatnonzero(above(blur.blur_px, thresholds.max_blur_px)):
+            centre = blur.blur_centre_px[k] if blur.blur_centre_px is not None else math.nan
             flagged.append(
                 FrameFlag(
                     name=frames.name[k],
                     kind="blur",
                     detail=(
-                        f"{blur.blur_px[k]:.2f} px of motion blur ({blur.speed_m_s[k]:.1f} m/s x "
-                        f"{blur.exposure_s[k] * 1000:.2f} ms / {fp.gsd_cm[k]:.2f} cm GSD)"
+                        f"{blur.blur_px[k]:.2f} px of motion blur where worst ({centre:.2f} px at the "
+                        "centre; "
+                        f"{blur.speed_m_s[k]:.1f} m/s x {blur.exposure_s[k] * 1000:.2f} ms, GSD "
+                        f"{fp.gsd_cm[k]:.2f} cm)"
+                        + (
+                            f": above {thresholds.fail_blur_px:g} px, it hurts matching"
+                            if above(blur.blur_px[k : k + 1], thresholds.fail_blur_px)[0]
+                            else f": above the {thresholds.max_blur_px:g} px warning"
+                        )
                     ),
                 )
             )
@@ -693,6 +813,8 @@ def _stereo(
         pair_index=np.column_stack([pairs.i, pairs.j]).astype(np.int64),
         pair_base_height_ratio=np.asarray(bh, dtype=np.float64),
         pair_intersection_deg=np.asarray(pairs.intersection_angle_deg, dtype=np.float64),
+        pair_along_line=along,
+        pair_across_lines=across,
         good_pair_pct=good_pct,
         stereo_class=classes,
         convergent_pct=convergent_pct,

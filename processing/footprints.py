@@ -7,8 +7,12 @@ image's bottom, z along the optical axis.
 
 Attitude (:mod:`processing.frames`): ``yaw_deg`` is the bearing of the image top, ``pitch_deg``
 tilts the optical axis off nadir toward the image top, ``roll_deg`` then turns the camera about
-its own y axis (the image's vertical axis), a positive roll swinging the optical axis toward the
-image's right. With roll 0 the rotation is exactly :func:`planner.footprint.camera_axes`.
+the image's vertical axis in the aircraft convention that Pix4D's XMP ``Camera:Roll`` and
+``sfap geotag`` use: positive is right wing down, so a belly camera (image top toward the nose)
+looks to the LEFT of the image (a 5 deg roll at 100 m puts the image centre 8.7 m to the left).
+Equivalently, the world(NED)-from-body rotation is ``Rz(yaw) Ry(pitch) Rx(roll)`` with the
+camera's x along the body's right wing, y toward the tail and z down. With roll 0 the rotation
+is exactly :func:`planner.footprint.camera_axes`.
 
 Each footprint is the ring of ground points of ``4 * (edge_samples + 1)`` rays around the sensor's
 edge: the corners top-left, top-right, bottom-right, bottom-left, each followed by
@@ -50,16 +54,18 @@ _BISECTION_STEPS = 48
 def world_from_camera(yaw_deg: ArrayLike, pitch_deg: ArrayLike, roll_deg: ArrayLike) -> F64:
     """World(ENU)-from-camera rotation matrices, shape (N, 3, 3): columns are camera x, y, z in ENU.
 
-    ``R = camera_axes(yaw, pitch) @ R_y(roll)``: yaw and pitch as in
-    :func:`planner.footprint.camera_axes`, then a roll about the camera's own y axis (positive
-    moves the optical axis toward the image's right).
+    ``R = camera_axes(yaw, pitch) @ R_y(-roll)``: yaw and pitch as in
+    :func:`planner.footprint.camera_axes`, then the aircraft's roll about its forward axis. The
+    camera's y axis points to the image bottom (toward the tail), the opposite of the body's
+    forward axis, hence the minus: a positive roll (right wing down) moves the optical axis
+    toward the image's LEFT (module docstring).
     """
     yaw, pitch, roll = np.broadcast_arrays(
         np.atleast_1d(np.asarray(yaw_deg, float)),
         np.atleast_1d(np.asarray(pitch_deg, float)),
         np.atleast_1d(np.asarray(roll_deg, float)),
     )
-    beta, tilt, phi = np.radians(yaw), np.radians(pitch), np.radians(roll)
+    beta, tilt, phi = np.radians(yaw), np.radians(pitch), -np.radians(roll)
     sb, cb, st, ct = np.sin(beta), np.cos(beta), np.sin(tilt), np.cos(tilt)
     sr, cr = np.sin(phi), np.cos(phi)
     zeros = np.zeros_like(sb)

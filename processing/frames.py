@@ -4,7 +4,8 @@ Camera attitude follows the Pix4D / OpenDroneMap camera convention, which the XM
 ``Camera:Yaw/Pitch/Roll`` carry: (0, 0, 0) is a camera looking straight down with the top of
 the image toward north; ``yaw_deg`` turns it clockwise seen from above (the bearing of the image
 top), ``pitch_deg`` tilts the optical axis off nadir toward the image top, ``roll_deg`` turns it
-about the image's vertical axis. With roll 0, (yaw, pitch) are exactly the
+about the image's vertical axis, positive right wing down (the aircraft convention: a belly
+camera then looks to the image's left). With roll 0, (yaw, pitch) are exactly the
 (``up_bearing_deg``, ``tilt_deg``) of :mod:`planner.footprint`.
 """
 
@@ -70,3 +71,27 @@ class Frames:
 
     def __len__(self) -> int:
         return len(self.name)
+
+    def select(self, keep: NDArray[np.bool_] | NDArray[np.intp]) -> Frames:
+        """The frames at ``keep`` (a boolean mask or row indices), every column alike."""
+        index = np.flatnonzero(keep) if np.asarray(keep).dtype == np.bool_ else np.asarray(keep, np.intp)
+
+        def take(value: F64 | None) -> F64 | None:
+            return None if value is None else np.asarray(value)[index]
+
+        line = None if self.line_index is None else self.line_index[index]
+        return Frames(
+            name=tuple(self.name[int(k)] for k in index),
+            lon_deg=self.lon_deg[index],
+            lat_deg=self.lat_deg[index],
+            alt_m=self.alt_m[index],
+            alt_reference=self.alt_reference,
+            yaw_deg=self.yaw_deg[index],
+            pitch_deg=self.pitch_deg[index],
+            roll_deg=self.roll_deg[index],
+            attitude_source=self.attitude_source,
+            camera=self.camera,
+            time_utc_s=take(self.time_utc_s),
+            exposure_s=take(self.exposure_s),
+            line_index=line,
+        )

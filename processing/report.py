@@ -34,7 +34,9 @@ from matplotlib.collections import PolyCollection
 from matplotlib.colors import BoundaryNorm, ListedColormap
 from matplotlib.figure import Figure
 from matplotlib.patches import PathPatch, Rectangle
+from matplotlib.text import Text as MplText
 from numpy.typing import NDArray
+from pyproj import CRS
 from shapely.geometry import Polygon, mapping
 from shapely.geometry.polygon import orient
 
@@ -211,26 +213,80 @@ def gaps_png(result: CheckResult) -> bytes:
             m.ax.add_patch(
                 PathPatch(gp, facecolor=_GAP_COLOUR, edgecolor="#7f0000", lw=0.8, alpha=0.85, zorder=5)
             )
-        c = gap.polygon_xy.representative_point()
-        m.ax.annotate(
-            str(gap.index),
-            (c.x - m.origin[0], c.y - m.origin[1]),
-            fontsize=9,
-            fontweight="bold",
-            color="black",
-            ha="center",
-            va="center",
-            zorder=8,
-            bbox={
-                "boxstyle": "round,pad=0.15",
-                "facecolor": "white",
-                "edgecolor": _GAP_COLOUR,
-                "lw": 0.8,
-            },
-        )
     m.area_outline()
     m.centres()
+    anchors = []
+    for gap in result.gaps:
+        c = gap.polygon_xy.representative_point()
+        anchors.append((c.x - m.origin[0], c.y - m.origin[1]))
+    place_labels(m.ax, anchors, [str(gap.index) for gap in result.gaps])
     return m.png()
+
+
+#: Offsets tried for a label that would overlap another, points, in rings around its anchor.
+_LABEL_DIRECTIONS = ((0, 1), (1, 0), (0, -1), (-1, 0), (1, 1), (-1, 1), (1, -1), (-1, -1))
+
+
+def _text_box(label: Any, renderer: Any) -> Any:
+    """The window extent of an annotation's text and its frame, without the leader line."""
+    label.update_positions(renderer)  # the text's place in display coordinates, as drawn
+    return MplText.get_window_extent(label, renderer).expanded(1.3, 1.3)
+
+
+def place_labels(ax: Any, anchors: Sequence[tuple[float, float]], texts: Sequence[str]) -> list[Any]:
+    """Label each anchor (data coordinates) so that no two labels overlap: a label that would
+    overlap one already placed moves out in rings of 14 pt around its anchor, with a leader line,
+    to a place inside the map.
+    Labels are placed in the order given (the largest gap first keeps its place). Returns the
+    annotations."""
+    figure = ax.figure
+    renderer = figure.canvas.get_renderer()
+    figure.canvas.draw()
+    placed: list[Any] = []
+    boxes: list[Any] = []
+    style = {
+        "fontsize": 9,
+        "fontweight": "bold",
+        "color": "black",
+        "ha": "center",
+        "va": "center",
+        "zorder": 8,
+        "bbox": {"boxstyle": "round,pad=0.15", "facecolor": "white", "edgecolor": _GAP_COLOUR, "lw": 0.8},
+    }
+    inside = ax.get_window_extent(renderer)
+
+    def clashes(box: Any) -> bool:
+        # Another label in the way, or a place (partly) outside the map.
+        return any(box.overlaps(other) for other in boxes) or not (
+            inside.x0 <= box.x0 and box.x1 <= inside.x1 and inside.y0 <= box.y0 and box.y1 <= inside.y1
+        )
+
+    for (x, y), text in zip(anchors, texts, strict=True):
+        label = ax.annotate(text, (x, y), xytext=(0, 0), textcoords="offset points", **style)
+        box = _text_box(label, renderer)
+        ring = 0
+        while clashes(box) and ring < 12:
+            ring += 1
+            for dx, dy in _LABEL_DIRECTIONS:
+                label.set_position((14 * ring * dx, 14 * ring * dy))
+                box = _text_box(label, renderer)
+                if not clashes(box):
+                    break
+        if ring:
+            label.remove()
+            offset = label.get_position()
+            label = ax.annotate(
+                text,
+                (x, y),
+                xytext=offset,
+                textcoords="offset points",
+                arrowprops={"arrowstyle": "-", "color": _GAP_COLOUR, "lw": 0.7},
+                **style,
+            )
+            box = _text_box(label, renderer)
+        placed.append(label)
+        boxes.append(box)
+    return placed
 
 
 def gsd_png(result: CheckResult) -> bytes:
@@ -427,7 +483,11 @@ def report_html(result: CheckResult, *, refly: SurveyPlan | None = None) -> str:
         [
             _dist_row("forward overlap", result.forward_overlap_pct, ".0f", " %"),
             _dist_row("side overlap", result.side_overlap_pct, ".0f", " %"),
-            _dist_row("pair base-height ratio", Distribution.of(result.pair_base_height_ratio), ".2f", ""),
+            _dist_row("B/H, consecutive frames of a line", result.base_height_along_line, ".2f", ""),
+            _dist_row("B/H, neighbouring lines", result.base_height_across_lines, ".2f", ""),
+            _dist_row(
+                "B/H, every overlapping pair", Distribution.of(result.pair_base_height_ratio), ".2f", ""
+            ),
             _dist_row(
                 "pair intersection angle",
                 Distribution.of(result.pair_intersection_deg),
@@ -467,6 +527,12 @@ def report_html(result: CheckResult, *, refly: SurveyPlan | None = None) -> str:
         flagged = _table(["frame", "flag", "detail"], [[f.name, f.kind, f.detail] for f in result.flagged])
     else:
         flagged = "<p>No frame flagged.</p>"
+    if result.left_out:
+        left_out = "<h2>Frames left out</h2>" + _table(
+            ["frame", "why"], [list(item) for item in result.left_out]
+        )
+    else:
+        left_out = ""
     notes = "".join(f"<li>{_e(n)}</li>" for n in result.notes)
     thresholds = ", ".join(f"{k} = {v:g}" for k, v in result.thresholds.as_dict().items())
     refly_html = ""
@@ -509,6 +575,7 @@ def report_html(result: CheckResult, *, refly: SurveyPlan | None = None) -> str:
 {refly_html}
 <h2>Flagged frames</h2>
 {flagged}
+{left_out}
 <h2>How this was computed</h2>
 <ul><li>ground: {_e(result.ground_description)}</li><li>area: {_e(result.area_source)}</li>
 {notes}</ul>
@@ -516,6 +583,29 @@ def report_html(result: CheckResult, *, refly: SurveyPlan | None = None) -> str:
 Full figures in report.json.</p>
 </body></html>
 """
+
+
+#: coverage.tif's value outside the area judged (0 inside means no frame sees the cell).
+COVERAGE_NODATA = -1
+
+
+def write_coverage_tif(result: CheckResult, path: str | os.PathLike[str]) -> Path:
+    """coverage.tif: frames that see each cell, int32, ``COVERAGE_NODATA`` outside the area, in
+    the UTM zone's EPSG code when the area lies in one zone (resampled, nearest, same cell size),
+    else in the check's own transverse Mercator frame; the band is described."""
+    from .coverage import utm_epsg, write_geotiff
+
+    counts = np.where(result.in_area, result.view_count, COVERAGE_NODATA).astype(np.int32)
+    west, south, east, north = result.area_lonlat.bounds
+    epsg = utm_epsg(west, south, east, north)
+    return write_geotiff(
+        path,
+        counts,
+        result.grid,
+        nodata=COVERAGE_NODATA,
+        description="views: frames that see the cell (0 = gap; nodata outside the area judged)",
+        to_crs=CRS.from_epsg(epsg) if epsg is not None else None,
+    )
 
 
 def write_report(
@@ -529,15 +619,13 @@ def write_report(
     ``refly``, that mission's files (``sfap plan``'s set) into ``out_dir/refly``."""
     from planner.export import OUTPUT_FILES, write_outputs
 
-    from .coverage import write_geotiff
-
     final = Path(out_dir)
     with staged_output_dir(final, overwrite=overwrite) as staging:
         atomic_write_bytes(staging / "view_count.png", view_count_png(result))
         atomic_write_bytes(staging / "gaps.png", gaps_png(result))
         atomic_write_bytes(staging / "gsd.png", gsd_png(result))
         atomic_write_bytes(staging / "base_height.png", base_height_png(result))
-        write_geotiff(staging / "coverage.tif", result.view_count, result.grid)
+        write_coverage_tif(result, staging / "coverage.tif")
         atomic_write_text(staging / "gaps.geojson", gaps_geojson(result))
         atomic_write_text(staging / "footprints.geojson", footprints_geojson(result))
         atomic_write_text(staging / "report.json", report_json(result))

@@ -52,6 +52,8 @@ CONVERGENT_OFF_NADIR_DEG = 10.0
 SCALE_TOLERANCE = 0.10
 LINE_BREAK_TURN_DEG = 30.0
 LINE_BREAK_JUMP_RATIO = 3.0
+#: A line whose nearest frame is within this factor of the nearest other line's is a neighbour.
+NEIGHBOUR_LINE_RATIO = 1.5
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -325,6 +327,44 @@ def flight_lines(
     return lines
 
 
+def pair_kinds(
+    frames: Frames, pairs: Pairs, lines: NDArray[np.int64]
+) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
+    """Which pairs matter for stereo: (along, across). ``along``: consecutive frames of a line
+    (next to each other in capture order, same line), the forward-overlap pairs whose B/H the
+    plan sets with its endlap; ``across``: a frame and the nearest frame of each other line it
+    overlaps, if that line is a neighbouring one (its nearest frame no further than
+    :data:`NEIGHBOUR_LINE_RATIO` x the nearest other line's), the side-overlap pairs whose B/H the
+    line spacing sets. Other pairs (a frame and the
+    one two ahead, diagonal pairs across lines) are neither."""
+    order = capture_order(frames)
+    rank = np.empty(len(frames), dtype=np.int64)
+    rank[order] = np.arange(len(frames))
+    same = lines[pairs.i] == lines[pairs.j]
+    along = same & (np.abs(rank[pairs.i] - rank[pairs.j]) == 1)
+    # Across lines: for each frame and each neighbouring line, the pair with that line's nearest
+    # frame (the base is the line spacing there), not every diagonal or farther-line pair.
+    across = np.zeros(len(pairs), dtype=bool)
+    candidates = np.flatnonzero(~same)
+    if candidates.size:
+        frame_of = np.concatenate([pairs.i[candidates], pairs.j[candidates]])
+        other_line = np.concatenate([lines[pairs.j[candidates]], lines[pairs.i[candidates]]])
+        base = np.concatenate([pairs.base_m[candidates], pairs.base_m[candidates]])
+        which = np.concatenate([candidates, candidates])
+        sort = np.lexsort((base, other_line, frame_of))
+        key = np.column_stack([frame_of[sort], other_line[sort]])
+        first = np.ones(len(sort), dtype=bool)
+        first[1:] = (key[1:] != key[:-1]).any(axis=1)
+        nearest = which[sort][first]
+        owner = frame_of[sort][first]
+        base_nearest = base[sort][first]
+        # Only the neighbouring lines: a line two spacings away is as far again as the nearest.
+        least = np.full(len(frames), np.inf)
+        np.minimum.at(least, owner, base_nearest)
+        across[nearest[base_nearest <= NEIGHBOUR_LINE_RATIO * least[owner]]] = True
+    return along, across
+
+
 def forward_overlaps_pct(frames: Frames, footprints: Footprints, lines: NDArray[np.int64]) -> F64:
     """Overlap of each pair of consecutive frames of a line, percent of their mean footprint area."""
     order = capture_order(frames)
@@ -453,7 +493,8 @@ SPEED_MAX_INTERVAL_RATIO = 3.0
 @dataclass(frozen=True, kw_only=True)
 class MotionBlur:
     """Per frame: ground speed (m/s, NaN where unknown), exposure (s) and blur (pixels, NaN where
-    the speed is unknown); ``exposure_s`` and ``blur_px`` are None when no exposure time is known,
+    the speed or the exposure is unknown; the worst point of the frame, ``blur_centre_px`` at the
+    image centre); ``exposure_s`` and ``blur_px`` are None when no exposure time is known,
     and ``exposure_source`` then too, else it says where the exposure came from ("exif" or
     "camera"). ``max_interval_s``: the longest interval a speed may be measured over (s; 0 when no
     two frames of a line have distinct times)."""
@@ -463,6 +504,51 @@ class MotionBlur:
     blur_px: F64 | None
     exposure_source: str | None
     max_interval_s: float
+    blur_centre_px: F64 | None = None
+
+
+def ground_velocities_m_s(
+    frames: Frames,
+    footprints: Footprints,
+    lines: NDArray[np.int64],
+    *,
+    max_interval_ratio: float = SPEED_MAX_INTERVAL_RATIO,
+) -> tuple[F64, float]:
+    """Velocity of each camera at its exposure, (N, 3) m/s in the local frame (x east, y north,
+    z up; NaN rows where unknown), and the longest interval a velocity may be measured over (s).
+
+    The velocity of a frame is the 3D step to its nearer-in-time neighbour (previous or next frame
+    in capture order) of the same flight line, over the time between them (oriented forward in
+    time): the camera fires on the line, and the nearer neighbour's step is the shortest stretch
+    of flight around the exposure, so a pause or dropped frames on one side do not slow it down.
+    A neighbour taken at the same time (no interval) does not count. When that neighbour is more
+    than ``max_interval_ratio`` x the median interval between consecutive frames of a line away (a
+    frame alone on its line, or between two gaps), the velocity is unknown rather than a guess:
+    the straight step across a turn or a pause is not the motion at the exposure.
+    """
+    n = len(frames)
+    velocity = np.full((n, 3), np.nan)
+    if frames.time_utc_s is None or n < 2:
+        return velocity, 0.0
+    order = capture_order(frames)
+    t = np.asarray(frames.time_utc_s, float)[order]
+    xyz = footprints.camera_xyz_m[order]
+    dt = np.diff(t)
+    step = np.diff(xyz, axis=0)
+    usable = (lines[order][:-1] == lines[order][1:]) & (dt > 0) & np.isfinite(step).all(axis=1)
+    if not usable.any():
+        return velocity, 0.0
+    max_interval_s = max_interval_ratio * float(np.median(dt[usable]))
+    usable &= dt <= max_interval_s
+    step_velocity = np.where(usable[:, None], step / np.where(usable, dt, 1.0)[:, None], np.nan)
+    # Each frame's step before and after it (in capture order), infinite time where unusable.
+    dt_before = np.concatenate([[np.inf], np.where(usable, dt, np.inf)])
+    dt_after = np.concatenate([np.where(usable, dt, np.inf), [np.inf]])
+    nan_row = np.full((1, 3), np.nan)
+    v_before = np.concatenate([nan_row, step_velocity])
+    v_after = np.concatenate([step_velocity, nan_row])
+    velocity[order] = np.where((dt_before <= dt_after)[:, None], v_before, v_after)
+    return velocity, max_interval_s
 
 
 def ground_speeds_m_s(
@@ -472,57 +558,85 @@ def ground_speeds_m_s(
     *,
     max_interval_ratio: float = SPEED_MAX_INTERVAL_RATIO,
 ) -> tuple[F64, float]:
-    """Ground speed of each frame at its exposure (m/s, NaN where unknown), and the longest
-    interval a speed may be measured over (s; 0 when no two frames of a line have distinct times).
+    """Ground speed of each frame at its exposure (m/s, NaN where unknown): the length of its
+    velocity (:func:`ground_velocities_m_s`), and the longest interval measured over (s)."""
+    velocity, max_interval_s = ground_velocities_m_s(
+        frames, footprints, lines, max_interval_ratio=max_interval_ratio
+    )
+    return np.linalg.norm(velocity, axis=1), max_interval_s
 
-    The speed of a frame is the 3D distance to its nearer-in-time neighbour (previous or next
-    frame in capture order) of the same flight line, over the time between them: the camera
-    fires on the line, and the nearer neighbour's step is the shortest stretch of flight around
-    the exposure, so a pause or dropped frames on one side do not slow it down. A neighbour taken
-    at the same time (no interval) does not count. When that neighbour is more than
-    ``max_interval_ratio`` x the median interval between consecutive frames of a line away (a
-    frame alone on its line, or between two gaps), the speed is unknown rather than a guess:
-    the straight step across a turn or a pause is not the speed at the exposure.
+
+def image_motion_px(
+    footprints: Footprints,
+    displacement_m: F64,
+    camera_pitch_mm: tuple[float, float],
+    focal_length_mm: float,
+    ground_z_m: F64 | None = None,
+) -> tuple[F64, F64]:
+    """How far the image of the ground moves while each camera moves by ``displacement_m``
+    ((N, 3) metres, x east, y north, z up): (worst over the frame, at the image centre), pixels.
+
+    Each ground point P seen by a frame (its ring vertices and its principal point) projects to
+    u = f x_c / z_c with (x_c, y_c, z_c) = R^T (P - C); after the camera moves by d it is at
+    f (x_c - d_x) / (z_c - d_z). The displacement on the sensor, along x and y, over the pixel
+    pitch of each axis, is the blur in pixels along the direction of motion in the image: the
+    ground moves fastest across the image where it is nearest, at the near edge of a tilted
+    frame. ``ground_z_m`` (N, V): the ground's elevation under each ring vertex (None: the
+    principal point's elevation, i.e. flat ground under each frame).
     """
-    n = len(frames)
-    speed = np.full(n, np.nan)
-    if frames.time_utc_s is None or n < 2:
-        return speed, 0.0
-    order = capture_order(frames)
-    t = np.asarray(frames.time_utc_s, float)[order]
-    xyz = footprints.camera_xyz_m[order]
-    dt = np.diff(t)
-    dist = np.linalg.norm(np.diff(xyz, axis=0), axis=1)
-    usable = (lines[order][:-1] == lines[order][1:]) & (dt > 0) & np.isfinite(dist)
-    if not usable.any():
-        return speed, 0.0
-    max_interval_s = max_interval_ratio * float(np.median(dt[usable]))
-    usable &= dt <= max_interval_s
-    step_speed = np.where(usable, dist / np.where(usable, dt, 1.0), np.nan)
-    # Each frame's step before and after it (in capture order), infinite time where unusable.
-    dt_before = np.concatenate([[np.inf], np.where(usable, dt, np.inf)])
-    dt_after = np.concatenate([np.where(usable, dt, np.inf), [np.inf]])
-    speed_before = np.concatenate([[np.nan], step_speed])
-    speed_after = np.concatenate([step_speed, [np.nan]])
-    speed[order] = np.where(dt_before <= dt_after, speed_before, speed_after)
-    return speed, max_interval_s
+    n = len(footprints)
+    worst = np.full(n, np.nan)
+    centre = np.full(n, np.nan)
+    if n == 0:
+        return worst, centre
+    xy = footprints.xy_m
+    z = (
+        ground_z_m
+        if ground_z_m is not None
+        else np.repeat(footprints.principal_xyz_m[:, 2:3], xy.shape[1], 1)
+    )
+    points = np.concatenate(
+        [np.concatenate([xy, z[..., None]], axis=2), footprints.principal_xyz_m[:, None, :]], axis=1
+    )  # (N, V+1, 3)
+    r = footprints.world_from_camera
+    rel = points - footprints.camera_xyz_m[:, None, :]
+    cam = np.einsum("nji,nvj->nvi", r, rel)  # R^T (P - C)
+    d = np.einsum("nji,nj->ni", r, displacement_m)[:, None, :]
+    moved = cam - d
+    pitch_x, pitch_y = camera_pitch_mm
+    with np.errstate(divide="ignore", invalid="ignore"):
+        du = focal_length_mm * (moved[..., 0] / moved[..., 2] - cam[..., 0] / cam[..., 2]) / pitch_x
+        dv = focal_length_mm * (moved[..., 1] / moved[..., 2] - cam[..., 1] / cam[..., 2]) / pitch_y
+    blur = np.hypot(du, dv)
+    ok = footprints.valid & np.isfinite(displacement_m).all(axis=1)
+    worst = np.where(ok, np.nanmax(np.where(np.isfinite(blur), blur, -np.inf), axis=1), np.nan)
+    centre = np.where(ok, blur[:, -1], np.nan)
+    return worst, centre
 
 
 def motion_blur(
-    frames: Frames, footprints: Footprints, lines: NDArray[np.int64] | None = None
+    frames: Frames,
+    footprints: Footprints,
+    lines: NDArray[np.int64] | None = None,
+    *,
+    ground_z_m: F64 | None = None,
 ) -> MotionBlur | None:
-    """Ground speeds (:func:`ground_speeds_m_s`) and blur in pixels = speed x exposure / GSD.
+    """Ground speeds (:func:`ground_speeds_m_s`) and motion blur in pixels: how far the image of
+    the ground moves during the exposure, along the direction of motion in the image, at the
+    point of the frame where it moves most (:func:`image_motion_px`; for a nadir frame over flat
+    ground, speed x exposure / GSD along the axis of motion).
 
     None without capture times; without an exposure time (neither EXIF nor the camera's
-    ``shutter_s``) the speeds alone, blur None. ``lines``: the flight lines
-    (:func:`flight_lines`, computed when not given).
+    ``shutter_s``) the speeds alone, blur None; NaN for a frame whose exposure or speed is
+    unknown. ``lines``: the flight lines (:func:`flight_lines`, computed when not given).
     """
     n = len(frames)
     if frames.time_utc_s is None or n < 2:
         return None
     if lines is None:
         lines = flight_lines(frames, footprints)
-    speed, max_interval_s = ground_speeds_m_s(frames, footprints, lines)
+    velocity, max_interval_s = ground_velocities_m_s(frames, footprints, lines)
+    speed = np.linalg.norm(velocity, axis=1)
     exposure: F64 | None = None
     source: str | None = None
     if frames.exposure_s is not None:
@@ -531,11 +645,21 @@ def motion_blur(
     elif frames.camera.shutter_s is not None:
         exposure = np.full(n, frames.camera.shutter_s)
         source = "camera"
-    blur = None if exposure is None else speed * exposure / (footprints.gsd_cm / 100.0)
+    blur = centre = None
+    if exposure is not None:
+        camera = frames.camera
+        blur, centre = image_motion_px(
+            footprints,
+            velocity * exposure[:, None],
+            (camera.pixel_pitch_x_mm, camera.pixel_pitch_y_mm),
+            camera.focal_length_mm,
+            ground_z_m,
+        )
     return MotionBlur(
         speed_m_s=speed,
         exposure_s=exposure,
         blur_px=blur,
+        blur_centre_px=centre,
         exposure_source=source,
         max_interval_s=max_interval_s,
     )

@@ -12,6 +12,9 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+import numpy as np
+from numpy.typing import NDArray
+
 from .errors import ProcessingError
 from .inputs import PlanInfo
 
@@ -31,9 +34,17 @@ class Thresholds:
       lets a matcher confirm a point.
     - ``max_overlap_shortfall_pct``: the median forward and side overlap may fall this many
       points under the plan's (10; "planned 80/80, got almost zero", REFERENCES.md section 5).
-    - ``max_blur_px``, ``max_blurred_frames_pct``: motion blur per frame above half a pixel
-      (the limit QGC and Mission Planner plan with) is a flagged frame; more than 5 % of the
-      frames flagged fails.
+    - ``max_blur_px``: motion blur per frame above half a pixel (the limit QGC and Mission
+      Planner plan with, REFERENCES.md section 2) flags the frame: a warning, not a failure.
+    - ``fail_blur_px``, ``max_blurred_frames_pct``: blur above 2 px is where it starts to hurt
+      reconstruction. A linear smear of L px has a standard deviation of L / sqrt(12), 0.58 px at
+      2 px: a third of the base scale of SIFT's finest octave (sigma 1.6 px, Lowe 2004), which
+      COLMAP and OpenDroneMap match with, so features survive at every scale up to about there;
+      beyond it the finest features go and matching and the point cloud degrade (Sieberth,
+      Wackrow and Chandler 2014, "Motion blur disturbs", The Photogrammetric Record 29(148), see
+      the loss grow with blur of a few pixels; no published cut-off is sharper). The OpenDroneMap
+      test set garfield (Parrot Sequoia, 1.5-1.8 px) reconstructs. More than 5 % of the frames
+      above 2 px fails; fewer are listed (their neighbours cover them).
     - ``min_base_height_ratio``, ``max_base_height_ratio``: the good range of a pair's B/H:
       above 0.54 (30 deg of intersection) matching gets hard (Wenzel et al. 2013); below 0.1
       (5.7 deg) depth precision sigma_Z = (H/B)(H/f) sigma_image is ten times worse than the
@@ -52,6 +63,7 @@ class Thresholds:
     min_seen_3_pct: float = 90.0
     max_overlap_shortfall_pct: float = 10.0
     max_blur_px: float = 0.5
+    fail_blur_px: float = 2.0
     max_blurred_frames_pct: float = 5.0
     min_base_height_ratio: float = 0.1
     max_base_height_ratio: float = 0.54
@@ -74,6 +86,11 @@ class Thresholds:
                 raise ProcessingError(f"threshold {key} = {value} is outside 0-100 %")
         if not (self.max_blur_px > 0 and math.isfinite(self.max_blur_px)):
             raise ProcessingError(f"threshold max_blur_px = {self.max_blur_px} must be positive pixels")
+        if not (math.isfinite(self.fail_blur_px) and self.fail_blur_px >= self.max_blur_px):
+            raise ProcessingError(
+                f"threshold fail_blur_px = {self.fail_blur_px} must be at least max_blur_px = "
+                f"{self.max_blur_px} (the warning comes before the failure)"
+            )
         if not (0.0 < self.min_base_height_ratio < self.max_base_height_ratio):
             raise ProcessingError(
                 f"B/H range {self.min_base_height_ratio}-{self.max_base_height_ratio} is empty; the minimum "
@@ -93,6 +110,17 @@ class Thresholds:
 DEFAULT_THRESHOLDS = Thresholds()
 
 
+def good_base_height(ratio: NDArray[np.float64], thresholds: Thresholds) -> NDArray[np.bool_]:
+    """Pairs whose B/H lies in the good range, both ends included."""
+    lo, hi = thresholds.min_base_height_ratio, thresholds.max_base_height_ratio
+    return np.asarray((ratio >= lo) & (ratio <= hi), dtype=bool)
+
+
+def above(values_px: NDArray[np.float64], limit_px: float) -> NDArray[np.bool_]:
+    """Frames whose blur is strictly above ``limit_px`` (unknown, NaN, is not above)."""
+    return np.asarray(np.nan_to_num(values_px, nan=-np.inf) > limit_px, dtype=bool)
+
+
 def judge(
     *,
     thresholds: Thresholds,
@@ -105,11 +133,13 @@ def judge(
     blurred_count: int,
     frame_count: int,
     blur_unknown_count: int = 0,
+    blurred_frames: Sequence[tuple[str, float]] = (),
 ) -> tuple[str, ...]:
     """The reasons a check fails, each with the figure, the threshold and what it means;
     empty when it passes.
 
-    ``blurred_count`` of ``frame_count`` frames are blurred beyond ``max_blur_px``;
+    ``blurred_count`` of ``frame_count`` frames are blurred beyond ``fail_blur_px``
+    (``blurred_frames``: their names and blur in pixels, named in the reason);
     ``blur_unknown_count`` more have no known speed (so no blur): they count as not blurred,
     and the reason says how many there were.
     """
@@ -156,9 +186,17 @@ def judge(
         )
     if frame_count and 100.0 * blurred_count / frame_count > t.max_blurred_frames_pct:
         unknown = f"; blur unknown for {blur_unknown_count} frames (no speed)" if blur_unknown_count else ""
+        worst = sorted(blurred_frames, key=lambda item: -item[1])[:10]
+        named = (
+            ": "
+            + ", ".join(f"{name} {px:.1f} px" for name, px in worst)
+            + (" ..." if len(blurred_frames) > 10 else "")
+            if worst
+            else ""
+        )
         reasons.append(
             f"{blurred_count} of {frame_count} frames ({100.0 * blurred_count / frame_count:.0f} %) have "
-            f"motion blur above {t.max_blur_px:g} px (at most {t.max_blurred_frames_pct:g} % allowed"
-            f"{unknown}): fly slower or use a shorter exposure"
+            f"motion blur above {t.fail_blur_px:g} px (at most {t.max_blurred_frames_pct:g} % allowed"
+            f"{unknown}){named}: fly slower or use a shorter exposure"
         )
     return tuple(reasons)

@@ -8,14 +8,17 @@ from pathlib import Path
 import click
 
 from planner.area import build_area, load_polygons
-from planner.camera_db import get_camera
 from planner.outputs import check_output_dir
 from processing.check import CheckResult, Thresholds, run_check
+from processing.errors import ProcessingError
+from processing.image_tags import camera_option
 from processing.inputs import (
+    GroundChoice,
     PlanInfo,
     frames_from_plan,
-    ground_from_options,
+    ground_for_plan,
     image_paths,
+    images_ground,
     is_plan_folder,
     read_image_frames,
     read_plan_info,
@@ -42,7 +45,10 @@ def _thresholds(values: tuple[str, ...]) -> Thresholds:
             raise click.BadParameter(
                 f"{item!r}: {text!r} is not a number", param_hint="--threshold"
             ) from None
-    return Thresholds(**changes)
+    try:
+        return Thresholds(**changes)
+    except ProcessingError as error:
+        raise click.BadParameter(str(error), param_hint="--threshold") from None
 
 
 @click.command("check")
@@ -68,7 +74,8 @@ def _thresholds(values: tuple[str, ...]) -> Thresholds:
 @click.option(
     "--dem",
     type=click.Path(exists=True, dir_okay=False, path_type=Path),
-    help="Ground elevations, GeoTIFF in any CRS, metres above mean sea level.",
+    help="Ground elevations, GeoTIFF in any CRS, metres above mean sea level (with a plan folder no "
+    "--takeoff-elevation-m is needed).",
 )
 @click.option(
     "--ground-elevation-m",
@@ -81,13 +88,17 @@ def _thresholds(values: tuple[str, ...]) -> Thresholds:
     type=float,
     default=None,
     help="Elevation of the take-off point, metres AMSL (for altitudes relative to home "
-    "with --dem or --ground-elevation-m).",
+    "with --dem or --ground-elevation-m; a plan folder records its own).",
 )
 @click.option(
     "--camera",
     "camera_id",
     default=None,
-    help="Camera id from `sfap cameras` (default: matched from the images' EXIF).",
+    metavar="ID|FILE.toml",
+    help="The camera: an id from `sfap cameras`, or a TOML file with the keys of a mission spec's "
+    "[camera] table (sensor_width_mm, sensor_height_mm, image_width_px, image_height_px, "
+    "focal_length_mm, or model = ID with overrides). Default: from the images' EXIF (the database, "
+    "else EXIF focal length with focal plane resolution, else the 35 mm equivalent focal length).",
 )
 @click.option(
     "--cell-m",
@@ -138,8 +149,12 @@ def command(
     ground cell, gaps, forward and side overlap, base-height ratios, GSD, motion blur.
 
     Images' EXIF altitudes are above mean sea level: give --ground-elevation-m or --dem (the
-    check never guesses the height above ground). A plan's altitudes are relative to home
-    (flat ground at home unless --dem with --takeoff-elevation-m).
+    check never guesses the height above ground); DJI's relative altitudes are above take-off.
+    Frames without a real position, of another camera or image size, or not taken on the survey
+    (on the ground, climbing, in transit) are left out and listed. A plan is judged on its own
+    ground: a terrain plan on its DEM (found in the plan folder, or --dem) and take-off
+    elevation, a flat plan on flat ground at home, or on --dem from the DEM's elevation at
+    home; images flown from a terrain plan (--plan) use its DEM when no ground is given.
 
     Exit code 0 when every threshold is met, 1 when the check fails (the reasons are
     printed), 2 for bad options or inputs.
@@ -151,16 +166,27 @@ def command(
     thresholds = _thresholds(threshold_items)
     if out_dir is not None:
         check_output_dir(out_dir, overwrite=overwrite)  # refuse before minutes of work
-    camera = get_camera(camera_id) if camera_id else None
+    camera = camera_option(camera_id) if camera_id else None
     show_progress = not no_progress and not as_json
     notes: tuple[str, ...] = ()
+    warnings: tuple[str, ...] = ()
+    left_out: tuple[tuple[str, str], ...] = ()
     plan: PlanInfo | None
     unpositioned: tuple[str, ...] = ()
+    choice: GroundChoice
+    camera_source = ""
     if is_plan_folder(source):
         if plan_dir is not None:
             raise click.UsageError(f"{source} is a plan folder already; drop --plan")
         frames, plan = frames_from_plan(source, camera=camera)
         notes = ("frames are the plan's stations (attitude as planned)",)
+        choice = ground_for_plan(
+            frames=frames,
+            info=plan,
+            dem=dem,
+            ground_elevation_m=ground_elevation_m,
+            takeoff_elevation_m=takeoff_elevation_m,
+        )
     else:
         plan = read_plan_info(plan_dir) if plan_dir is not None else None
         with progress("reading images", len(image_paths(source)), enabled=show_progress) as advance:
@@ -169,15 +195,19 @@ def command(
             )
         frames, notes, unpositioned = (
             images.frames,
-            (images.camera_source, *images.notes),
+            (f"camera: {images.camera_source}", *images.notes),
             images.unpositioned,
         )
-    choice = ground_from_options(
-        frames=frames,
-        dem=dem,
-        ground_elevation_m=ground_elevation_m,
-        takeoff_elevation_m=takeoff_elevation_m,
-    )
+        warnings, left_out = images.warnings, images.left_out
+        camera_source = images.camera_source
+        choice = images_ground(
+            frames=frames,
+            plan=plan,
+            dem=dem,
+            ground_elevation_m=ground_elevation_m,
+            takeoff_elevation_m=takeoff_elevation_m,
+        )
+    left_out = (*left_out, *choice.left_out)
     area = None
     if area_file is not None:
         area, _ = build_area(load_polygons(area_file), [])
@@ -201,6 +231,9 @@ def command(
             ground_description=choice.description,
             notes=notes,
             unpositioned=unpositioned,
+            left_out=left_out,
+            warnings=warnings,
+            camera_source=camera_source,
         )
     refly_plan = None
     if refly and result.gaps:

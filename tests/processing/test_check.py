@@ -234,9 +234,11 @@ def test_garfield_images(garfield_result: CheckResult) -> None:
     # The block itself is seen by every frame's neighbours (large frames, 95 m up) ...
     assert r.seen_pct[1] == 100.0 and r.gaps == ()
     # ... but the sparse subset leaves frames 5 s apart at 11 m/s: about 40 % endlap, and the
-    # 1/333 s exposure smears more than half a pixel, so the check fails on blur.
+    # 1/333 s exposure at 11-14 m/s smears 1.5-1.8 px: flagged (above 0.5 px), not failed (below
+    # 2 px; the set reconstructs in OpenDroneMap).
     assert r.forward_overlap_pct is not None and r.forward_overlap_pct.median < 60.0
-    assert not r.passed and any("motion blur" in reason for reason in r.reasons)
+    assert r.passed and any("motion blur above 0.5 px" in w for w in r.warnings)
+    assert r.blur_px is not None and 1.4 < np.nanmax(r.blur_px) < r.thresholds.fail_blur_px
     blurred = [f for f in r.flagged if f.kind == "blur"]
     assert blurred and r.blur_px is not None
     for flag in blurred:
@@ -272,7 +274,7 @@ def test_garfield_speeds_come_from_consecutive_captures(garfield_result: CheckRe
     assert any(f"ground speed unknown for {unknown} of 28 frames" in note for note in r.notes)
     figures = dict(r.key_figures())
     assert f"unknown for {unknown} frames" in figures["ground speed"]
-    assert any(f"blur unknown for {unknown} frames" in reason for reason in r.reasons)
+    assert f"blur not computed for {unknown} frames" in figures["motion blur"]
 
 
 def test_garfield_gap_where_the_subset_has_no_frames(garfield: Any, garfield_result: CheckResult) -> None:
@@ -303,20 +305,33 @@ def test_report_folder(garfield_result: CheckResult, tmp_path: Path) -> None:
     assert sorted(p.name for p in written) == sorted(REPORT_FILES)
     assert all(p.is_file() for p in written)
     data = json.loads((out / "report.json").read_text())
-    assert data["verdict"] == "fail" and data["exit_code"] == 1 and data["reasons"] == list(r.reasons)
+    assert data["verdict"] == "pass" and data["exit_code"] == 0 and data["reasons"] == list(r.reasons)
     assert data["frames"]["count"] == 28 and data["frames"]["camera_id"] == "parrot-sequoia-rgb"
     assert data["coverage"]["seen_by_at_least_pct"]["1"] == r.seen_pct[1]
     assert len(data["per_frame"]) == 28
     with rasterio.open(out / "coverage.tif") as tif:
-        # The check's own transverse Mercator frame, centred on the frames (opens in QGIS).
-        crs = pyproj.CRS.from_wkt(tif.crs.to_wkt())
-        assert crs.equals(r.frame.crs)
-        operation = crs.coordinate_operation
-        assert operation is not None and operation.method_name == "Transverse Mercator"
-        lon_0 = next(p.value for p in operation.params if p.name == "Longitude of natural origin")
-        assert lon_0 == pytest.approx(float(np.median(r.frames.lon_deg)))
-        np.testing.assert_array_equal(tif.read(1), r.view_count)
+        # A named CRS: Cleveland, Ohio is in UTM zone 17 N.
+        assert tif.crs.to_epsg() == 32617
+        assert tif.nodata == -1 and tif.descriptions[0].startswith("views")
         assert tif.transform.a == r.cell_m
+        values = tif.read(1)
+        rows, cols = np.indices(values.shape)
+        east, north = rasterio.transform.xy(tif.transform, rows.ravel(), cols.ravel())
+    # Independently: each UTM cell centre, through pyproj, into the check's frame and its grid.
+    to_lonlat = pyproj.Transformer.from_crs(32617, 4326, always_xy=True)
+    lon, lat = to_lonlat.transform(np.asarray(east), np.asarray(north))
+    x, y = r.frame.to_xy(lon, lat)
+    west, _, _, north_edge = r.grid.bounds
+    col = np.floor((np.asarray(x) - west) / r.cell_m).astype(int)
+    row = np.floor((north_edge - np.asarray(y)) / r.cell_m).astype(int)
+    inside = (row >= 0) & (row < r.grid.rows) & (col >= 0) & (col < r.grid.cols)
+    expected = np.full(values.size, -1)
+    sel = np.flatnonzero(inside)
+    in_area = r.in_area[row[sel], col[sel]]
+    expected[sel[in_area]] = r.view_count[row[sel], col[sel]][in_area]
+    # Nearest-neighbour resampling agrees cell for cell away from cell boundaries.
+    assert np.mean(values.ravel() == expected) > 0.97
+    assert ((values == -1).sum() > 0) and (values[values >= 0].min() >= 0)
     footprints = json.loads((out / "footprints.geojson").read_text())
     assert len(footprints["features"]) == 28
     for feature, ring in zip(footprints["features"], r.footprints_lonlat, strict=True):
@@ -326,7 +341,7 @@ def test_report_folder(garfield_result: CheckResult, tmp_path: Path) -> None:
         assert written.symmetric_difference(shapely.Polygon(ring)).area < 1e-8 * written.length
     assert json.loads((out / "gaps.geojson").read_text())["features"] == []
     page = (out / "report.html").read_text()
-    assert page.index("FAIL") < page.index("Key figures")  # the verdict first
+    assert page.index("PASS") < page.index("Key figures")  # the verdict first
     for name in ("view_count.png", "gaps.png", "gsd.png", "base_height.png"):
         assert f'src="{name}"' in page
         image = imread(out / name)
@@ -350,6 +365,10 @@ def test_report_of_a_failing_plan_lists_its_gaps(missing_line_result: CheckResul
         assert written.symmetric_difference(gap.polygon_lonlat).area < 1e-8 * written.length
     page = (tmp_path / "r" / "report.html").read_text()
     assert "Gaps" in page and f"{r.gaps[0].area_m2:,.0f}" in page
+    with rasterio.open(tmp_path / "r" / "coverage.tif") as tif:
+        values = tif.read(1)
+    # Inside the area a gap is 0 views, a value; outside the area is nodata.
+    assert (values == 0).sum() > 0 and (values == -1).sum() > 0 and tif.nodata == -1
 
 
 def _gap(area_m2: float) -> Gap:

@@ -114,11 +114,64 @@ def test_rotation_is_proper_and_roll_turns_about_image_vertical(
     assert float(r[:, 2] @ base[:, 2]) == pytest.approx(math.cos(math.radians(roll)), abs=1e-12)
 
 
-def test_positive_roll_swings_a_north_up_nadir_frame_toward_east() -> None:
-    r = world_from_camera(0.0, 0.0, 15.0)[0]
-    axis = r[:, 2]
-    assert axis[0] == pytest.approx(math.sin(math.radians(15.0)))  # east = image right
-    assert axis[1] == pytest.approx(0.0, abs=1e-12)
+def _oracle_world_from_camera(yaw_deg: float, pitch_deg: float, roll_deg: float) -> np.ndarray:
+    """ENU-from-camera written from the convention's definition, independently of the code.
+
+    Pix4D's Yaw/Pitch/Roll (and sfap geotag's XMP) are the aircraft's Tait-Bryan angles:
+    NED-from-body = Rz(yaw) Ry(pitch) Rx(roll), body x to the nose, y to the right wing, z down;
+    the camera looks down the body z axis with the image top toward the nose, so the camera's
+    x (image right) is the body's y, its y (image bottom) is minus the body's x.
+    """
+    y, p, r = (math.radians(v) for v in (yaw_deg, pitch_deg, roll_deg))
+    rz = np.array([[math.cos(y), -math.sin(y), 0], [math.sin(y), math.cos(y), 0], [0, 0, 1]])
+    ry = np.array([[math.cos(p), 0, math.sin(p)], [0, 1, 0], [-math.sin(p), 0, math.cos(p)]])
+    rx = np.array([[1, 0, 0], [0, math.cos(r), -math.sin(r)], [0, math.sin(r), math.cos(r)]])
+    body_from_camera = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    enu_from_ned = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
+    return enu_from_ned @ rz @ ry @ rx @ body_from_camera
+
+
+def _oracle_ground_points(
+    yaw_deg: float, pitch_deg: float, roll_deg: float, height_m: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Corners (TL, TR, BR, BL) and principal point on flat ground, relative to the nadir point."""
+    r = _oracle_world_from_camera(yaw_deg, pitch_deg, roll_deg)
+    w, h, f = CAMERA.sensor_width_mm / 2, CAMERA.sensor_height_mm / 2, CAMERA.focal_length_mm
+    rays = np.array([[-w, -h, f], [w, -h, f], [w, h, f], [-w, h, f], [0.0, 0.0, f]]) @ r.T
+    points = rays * (height_m / -rays[:, 2])[:, None]
+    return points[:4, :2], points[4, :2]
+
+
+def test_positive_roll_is_right_wing_down_and_looks_left() -> None:
+    # A 5 deg roll at 100 m: the image centre lands 100 tan 5 = 8.75 m to the LEFT of the track.
+    ground = FlatGround(elevation_m=0.0, reference=AltitudeReference.AMSL)
+    for yaw, left in ((0.0, (-1.0, 0.0)), (90.0, (0.0, 1.0)), (180.0, (1.0, 0.0))):
+        fp = project_footprints(make_frames(ORIGIN_X_M, ORIGIN_Y_M, 100.0, yaw, 0.0, 5.0), FRAME, ground)
+        offset = fp.principal_xyz_m[0, :2] - [ORIGIN_X_M, ORIGIN_Y_M]
+        expected = 100.0 * math.tan(math.radians(5.0)) * np.array(left)
+        np.testing.assert_allclose(offset, expected, atol=1e-6)
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    yaw=st.floats(0, 360),
+    pitch=st.floats(-30, 30),
+    roll=st.floats(-30, 30),
+    height=st.floats(20, 400),
+)
+def test_footprints_agree_with_an_independent_ray_cast(
+    yaw: float, pitch: float, roll: float, height: float
+) -> None:
+    fp = project_footprints(
+        make_frames(ORIGIN_X_M, ORIGIN_Y_M, 200.0 + height, yaw, pitch, roll),
+        FRAME,
+        FlatGround(elevation_m=200.0, reference=AltitudeReference.AMSL),
+        edge_samples=0,
+    )
+    corners, principal = _oracle_ground_points(yaw, pitch, roll, height)
+    origin = np.array([ORIGIN_X_M, ORIGIN_Y_M])
+    np.testing.assert_allclose(fp.xy_m[0] - origin, corners, atol=0.01)
+    np.testing.assert_allclose(fp.principal_xyz_m[0, :2] - origin, principal, atol=0.01)
 
 
 # --- flat ground -------------------------------------------------------------------------------

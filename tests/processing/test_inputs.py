@@ -162,7 +162,7 @@ def test_amsl_frames_need_a_ground(garfield: object) -> None:
     choice = ground_from_options(frames=frames, ground_elevation_m=GARFIELD_GROUND_M)
     assert isinstance(choice.ground, FlatGround) and choice.ground.elevation_m == GARFIELD_GROUND_M
     assert "258 m" in choice.description
-    with pytest.raises(GroundError, match="less than 1 m above the ground"):
+    with pytest.raises(GroundError, match="within a few metres of the ground or under it"):
         ground_from_options(frames=frames, ground_elevation_m=350.0)
     with pytest.raises(GroundError, match="give one"):
         ground_from_options(frames=frames, ground_elevation_m=258.0, dem="x.tif")

@@ -347,3 +347,63 @@ def test_pair_overlaps_and_centres_equal_shapely_for_tilted_frames() -> None:
         if polys[a].intersection(polys[b]).area < 1e-3 * min(polys[a].area, polys[b].area)
     }
     assert found <= truth and truth - found == small
+
+
+# --- B/H of the pairs that matter, blur along the motion -------------------------------------------
+
+
+def test_base_height_of_consecutive_and_of_neighbouring_line_pairs() -> None:
+    from processing.stereo import pair_kinds
+
+    frames, _ = lawnmower(80.0, 70.0, turn_frames=False)
+    fp = project(frames)
+    pairs = overlapping_pairs(fp, GROUND, FRAME)
+    lines = flight_lines(frames, fp)
+    along, across = pair_kinds(frames, pairs, lines)
+    # Eq. 3-5: B = D (1 - PE / 100) along a line; the line spacing across: B/H over HEIGHT_M.
+    nominal = CAMERA.footprint(HEIGHT_M, Orientation.LANDSCAPE)
+    assert along.sum() == 6 * 14
+    np.testing.assert_allclose(pairs.base_height_ratio[along], nominal.along_m * 0.2 / HEIGHT_M, rtol=1e-6)
+    assert across.sum() == 5 * 15  # each station and its neighbour on the next line, once
+    np.testing.assert_allclose(pairs.base_height_ratio[across], nominal.across_m * 0.3 / HEIGHT_M, rtol=1e-6)
+    # Every other overlapping pair (two stations apart, diagonal, two lines over) is neither.
+    assert (~(along | across)).sum() == len(pairs) - 6 * 14 - 5 * 15 > 0
+
+
+def test_blur_of_a_tilted_frame_is_worst_at_its_near_edge() -> None:
+    from test_footprints import _oracle_world_from_camera
+
+    pitch_deg, exposure_s = 30.0, 1 / 100
+    y = ORIGIN_Y_M + np.arange(5) * 10.0
+    frames = make_frames(
+        np.full(5, ORIGIN_X_M), y, HEIGHT_M, 0.0, pitch_deg, reference=AltitudeReference.REL_HOME
+    )
+    frames = dataclasses.replace(
+        frames, time_utc_s=START_S + np.arange(5) * 10.0 / SPEED_M_S, exposure_s=np.full(5, exposure_s)
+    )
+    fp = project(frames)
+    blur = motion_blur(frames, fp)
+    assert blur is not None and blur.blur_px is not None and blur.blur_centre_px is not None
+    d = SPEED_M_S * exposure_s  # metres flown north during the exposure
+    f_px = CAMERA.focal_length_mm / CAMERA.pixel_pitch_y_mm
+    # The centre: the ground point H tan(p) ahead of the nadir is seen p off the vertical, on the
+    # axis; after the camera moves d it is seen atan((H tan p - d) / H) off the vertical, so
+    # f tan(that - p) pixels from the centre, along the image's vertical (the track).
+    p = math.radians(pitch_deg)
+    centre = f_px * abs(math.tan(math.atan((HEIGHT_M * math.tan(p) - d) / HEIGHT_M) - p))
+    np.testing.assert_allclose(blur.blur_centre_px, centre, rtol=1e-6)
+    # Everywhere: an independent pinhole projection of each ground ring point before and after.
+    r = _oracle_world_from_camera(0.0, pitch_deg, 0.0)
+    worst = []
+    for k in range(5):
+        cam = fp.camera_xyz_m[k]
+        shifts = []
+        for x, yy in fp.xy_m[k]:
+            for offset in (0.0, d):
+                v = r.T @ (np.array([x, yy, 0.0]) - (cam + np.array([0.0, offset, 0.0])))
+                shifts.append((f_px * v[0] / v[2], f_px * v[1] / v[2]))
+        pts = np.array(shifts).reshape(-1, 2, 2)
+        worst.append(np.hypot(*(pts[:, 1] - pts[:, 0]).T).max())
+    np.testing.assert_allclose(blur.blur_px, worst, rtol=1e-6)
+    # The near edge (image bottom, closest ground) smears more than the centre: tilt makes it worse.
+    assert (blur.blur_px > 1.3 * blur.blur_centre_px).all()
