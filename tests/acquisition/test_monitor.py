@@ -391,7 +391,9 @@ def test_missed_stations_are_those_passed_without_a_photo(tmp_path: Path) -> Non
     state = rec.state()
     # 11 is the last station: nothing later was reached, so it is not yet known as missed
     assert state.missed_stations == (2, 8)
-    assert state.photos_taken == 9 and state.stations_taken == 9 and state.extra_photos == 0
+    # the image index says 11 photos were taken; the events of two never came (2 and 8)
+    assert state.photos_taken == 11 and state.events_received == 9 and state.photos_unseen == 2
+    assert state.stations_taken == 9 and state.extra_photos == 0
     rec.record(wire(heartbeat(False)), T0 + 100)  # landed and disarmed: the flight is over
     final = rec.close()
     assert final.flight_over and final.missed_stations == (2, 8, 11)
@@ -405,9 +407,10 @@ def test_late_photo_unmisses_and_far_photo_is_extra(tmp_path: Path) -> None:
         rec.record(wire(system_time(0.0)), T0)
         fly(rec, wire, legs, skip={1}, until=3)
         assert rec.state().missed_stations == (1,)
-        rec.record(wire(feedback(50.0, 99, 10.0 + 3.0, 1.0)), T0 + 50)  # late, 3.2 m off
+        # station 1's event (image index 2) arrives late, 3.2 m off
+        rec.record(wire(feedback(50.0, 2, 10.0 + 3.0, 1.0)), T0 + 50)
         assert rec.state().missed_stations == ()
-        rec.record(wire(feedback(51.0, 100, 500.0, 0.0)), T0 + 51)  # nowhere near a station
+        rec.record(wire(feedback(51.0, 4, 500.0, 0.0)), T0 + 51)  # nowhere near a station
         state = rec.state()
     assert state.extra_photos == 1 and state.photos_taken == 4
 
@@ -706,7 +709,9 @@ def test_link_drop_mid_flight_is_survived_and_the_recording_kept(
     # none was shot after the monitor was back (the update that says so, in simulated time)
     back_at = min(t for t, st in box["clocked"] if st.reconnects == 1)
     assert max(s.time_s for s in shots if s.index in set(lost)) <= back_at
-    assert len(ev) == n - len(lost) == state.photos_taken
+    assert len(ev) == n - len(lost) == state.events_received
+    # the image index still counts every photo: the lost ones are photos unseen, not untaken
+    assert state.photos_taken == n and state.photos_unseen == len(lost)
     # ... and the monitor reports exactly their stations as missed (img_idx k is station k-1)
     assert state.missed_stations == tuple(i - 1 for i in lost)
     _, _, dist = GEOD.inv(
@@ -800,6 +805,13 @@ class ScriptedVehicle:
                 return
             peer.sendall(b"".join(packets))
             if k < len(self.scripts) - 1:
+                # read what the monitor sends (its heartbeat, its stream requests) as a vehicle
+                # does: closing with unread bytes would reset the connection and could discard
+                # what was sent before the reset
+                peer.settimeout(0.5)
+                with contextlib.suppress(OSError):
+                    while peer.recv(4096):
+                        pass
                 peer.shutdown(socket.SHUT_RDWR)
                 peer.close()
             else:
