@@ -313,7 +313,7 @@ class Link:
                 f"a MAVLink signing key is 32 bytes, this one has {len(signing_key)}; "
                 f"see load_signing_key for the key file forms"
             )
-        conn = _open_transport(parsed, source_system, source_component)
+        conn = _open_with_patience(parsed, source_system, source_component, heartbeat_timeout_s)
         link: Link | None = None
         try:
             link = cls(
@@ -610,6 +610,25 @@ def _close_quietly(conn: Any) -> None:
         conn.close()
     except Exception as error:  # a port that is already gone: nothing left to release
         log.debug("close: %s", error)
+
+
+#: How long (s, at most; never more than the heartbeat timeout) a ``tcp://`` connection that
+#: is refused is tried again: a simulator or SITL started a moment ago is not listening yet.
+CONNECT_PATIENCE_S = 5.0
+
+
+def _open_with_patience(url: LinkUrl, source_system: int, source_component: int, timeout_s: float) -> Any:
+    """:func:`_open_transport`; a refused ``tcp://`` connection is tried again every 0.2 s for
+    up to min(:data:`CONNECT_PATIENCE_S`, ``timeout_s``) seconds."""
+    deadline = time.monotonic() + min(CONNECT_PATIENCE_S, timeout_s)
+    while True:
+        try:
+            return _open_transport(url, source_system, source_component)
+        except LinkError as error:
+            refused = isinstance(error.__cause__, ConnectionRefusedError)
+            if not refused or url.scheme != "tcp" or time.monotonic() + 0.2 > deadline:
+                raise
+        time.sleep(0.2)
 
 
 def _open_transport(url: LinkUrl, source_system: int, source_component: int) -> Any:

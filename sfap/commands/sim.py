@@ -170,7 +170,7 @@ _PERCENT = click.FloatRange(0.0, 100.0)
 @click.option(
     "--until-landed",
     is_flag=True,
-    help="Stop 5 s after the vehicle has flown, landed and disarmed (for scripts).",
+    help="Stop 15 s after the vehicle has flown, landed and disarmed (for scripts).",
 )
 @click.option(
     "--duration-s",
@@ -278,7 +278,7 @@ def command(
         if auto_start:
             vehicle.auto_start(wait_for_telemetry=vehicle.streams_on_request)
         try:
-            why = serve(vehicle, duration_s=duration_s, until_landed=until_landed, linger_s=5.0)
+            why = serve(vehicle, duration_s=duration_s, until_landed=until_landed, linger_s=15.0)
         except KeyboardInterrupt:
             why = "interrupted"
         shots = len(vehicle.flight.shots)
