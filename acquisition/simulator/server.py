@@ -623,13 +623,10 @@ class SimulatedVehicle:
             self._ack(msg, MAV_MISSION_NO_SPACE, mission_type)
             self._send_text(4, "Only 0 items are supported")
             return
-        if self.faults.refuse == Refusal.NO_SPACE and msg.count > 0:
+        if (self.faults.refuse == Refusal.NO_SPACE and msg.count > 0) or msg.count > self.max_items:
             self._ack(msg, MAV_MISSION_NO_SPACE, mission_type)
-            self._send_text(4, f"Only {self.max_items} items are supported")
-            return
-        if msg.count > self.max_items:
-            self._ack(msg, MAV_MISSION_NO_SPACE, mission_type)
-            self._send_text(4, f"Only {self.max_items} items are supported")
+            if ardupilot:  # PX4 says nothing more than its NO_SPACE
+                self._send_text(4, f"Only {self.max_items} items are supported")
             return
         self._completed = None
         if ardupilot:
