@@ -960,8 +960,9 @@ def serve(
     linger_s: float = 0.0,
 ) -> str:
     """Keep a started ``vehicle`` running; return why it stopped: ``"duration"`` after
-    ``duration_s`` wall seconds, ``"landed"`` ``linger_s`` wall seconds after it has flown and
-    landed (``until_landed``; the linger lets a ground station see the landing and disarm).
+    ``duration_s`` wall seconds, ``"landed"`` once it has flown and landed (``until_landed``;
+    ``linger_s`` wall seconds later when a ground station asked for telemetry, so that it sees
+    the landing and the disarm and can still talk to the vehicle).
     Without either it runs until KeyboardInterrupt (Ctrl-C), which propagates."""
     deadline = None if duration_s is None else time.monotonic() + duration_s
     landed_at: float | None = None
@@ -970,8 +971,10 @@ def serve(
             raise LinkError(f"the simulated vehicle stopped: {vehicle._error}")
         if until_landed and landed_at is None and vehicle.wait_landed(0.0):
             landed_at = time.monotonic()
-        if landed_at is not None and time.monotonic() - landed_at >= linger_s:
-            return "landed"
+        if landed_at is not None:
+            watched = vehicle.flight.telemetry_requested  # a ground station may still be reading
+            if not watched or time.monotonic() - landed_at >= linger_s:
+                return "landed"
         if deadline is not None and time.monotonic() >= deadline:
             return "duration"
         time.sleep(poll_s)

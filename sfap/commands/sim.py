@@ -170,7 +170,8 @@ _PERCENT = click.FloatRange(0.0, 100.0)
 @click.option(
     "--until-landed",
     is_flag=True,
-    help="Stop 15 s after the vehicle has flown, landed and disarmed (for scripts).",
+    help="Stop once the vehicle has flown, landed and disarmed (for scripts); 15 s later when a "
+    "ground station is watching (asked for telemetry).",
 )
 @click.option(
     "--duration-s",

@@ -111,7 +111,8 @@ def open_link(
         )
     except LinkError as error:
         if nothing_sent_note:
-            raise LinkError(f"{error}. {nothing_sent_note}") from error
+            # the same kind of error (a bad URL or key file stays bad usage), with the note
+            raise type(error)(f"{error}. {nothing_sent_note}") from error
         raise
 
 

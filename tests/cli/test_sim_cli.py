@@ -52,6 +52,8 @@ def test_sim_flies_a_preloaded_mission_and_writes_the_tlog(tmp_path: Path) -> No
         "--mission",
         str(mission),
         "--auto-start",
+        "--streams",
+        "always",  # no ground station here asks for telemetry: stream it anyway
         "--until-landed",
         "--speedup",
         "200",
@@ -81,7 +83,7 @@ def test_sim_flies_a_preloaded_mission_and_writes_the_tlog(tmp_path: Path) -> No
 
 def test_sim_bad_input_is_a_clear_error(tmp_path: Path) -> None:
     code, _, err = _run("sim", "--listen", "serial:///dev/ttyUSB0", "--duration-s", "0")
-    assert code == 1 and "tcpin://" in err and "Traceback" not in err
+    assert code == 2 and "tcpin://" in err and "Traceback" not in err  # not a URL it can listen on
     not_mission = tmp_path / "notes.txt"
     not_mission.write_text("hello\n")
     code, _, err = _run("sim", "--mission", str(not_mission), "--duration-s", "0")
