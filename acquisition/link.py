@@ -619,6 +619,22 @@ def _close_quietly(conn: Any) -> None:
         log.debug("close: %s", error)
 
 
+#: Receive buffer asked of the operating system for network links (bytes; Linux caps it at
+#: net.core.rmem_max). A relaying ground station sends in bursts of thousands of messages a
+#: second; the default UDP buffer (about 200 kB, some 200 datagrams) overflows in a tenth of a
+#: second when the reading thread is not scheduled, and the kernel drops what does not fit.
+RECEIVE_BUFFER_BYTES = 4 << 20
+
+
+def _enlarge_receive_buffer(conn: Any) -> None:
+    port = getattr(conn, "port", None)
+    if isinstance(port, socket.socket):
+        try:
+            port.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, RECEIVE_BUFFER_BYTES)
+        except OSError as error:  # a smaller buffer still works
+            log.debug("receive buffer not enlarged: %s", error)
+
+
 #: How long (s, at most; never more than the heartbeat timeout) a ``tcp://`` connection that
 #: is refused is tried again: a simulator or SITL started a moment ago is not listening yet.
 CONNECT_PATIENCE_S = 5.0
@@ -630,7 +646,10 @@ def _open_with_patience(url: LinkUrl, source_system: int, source_component: int,
     deadline = time.monotonic() + min(CONNECT_PATIENCE_S, timeout_s)
     while True:
         try:
-            return _open_transport(url, source_system, source_component)
+            conn = _open_transport(url, source_system, source_component)
+            if url.scheme != "serial":
+                _enlarge_receive_buffer(conn)
+            return conn
         except LinkError as error:
             refused = isinstance(error.__cause__, ConnectionRefusedError)
             if not refused or url.scheme != "tcp" or time.monotonic() + 0.2 > deadline:

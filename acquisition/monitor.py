@@ -429,7 +429,7 @@ class LinkQuality:
 
 
 #: How far back (in sequence numbers) a message counted lost may still arrive late.
-LATE_WINDOW = 32
+LATE_WINDOW = 16
 
 
 @dataclass

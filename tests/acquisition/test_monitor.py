@@ -19,12 +19,15 @@ from typing import Any
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 from pyproj import Geod
 
 from acquisition.link import Link
 from acquisition.monitor import (
     CSV_COLUMNS,
+    _SeqCounter,
     FlightRecorder,
     MonitorResult,
     MonitorState,
@@ -906,3 +909,126 @@ def test_tlog_holds_every_system_and_the_heartbeat_waits_and_no_false_loss_is_co
     # the tlog reader sees the vehicle and names the other sources
     flight = read_tlog(result.tlog_path)
     assert any("2/1" in w and "2/154" in w for w in flight.warnings)
+
+
+# --- loss counting: the 8-bit sequence rule, and a fast sender ---------------------------------
+
+
+def test_a_burst_of_200_lost_is_200_lost_not_one_late(tmp_path: Path) -> None:
+    # the old rule read every jump of 128 or more as a late arrival: 200 lost counted as -1
+    wire = Wire()
+    with FlightRecorder(tmp_path / "rec") as rec:
+        for seq in [*range(0, 50), *range(250, 256), *range(0, 10)]:  # 50..249 lost: 200
+            rec.record(wire(heartbeat(False), seq=seq), T0)
+        one = rec.state().link[0]
+    assert (one.received, one.lost, one.late, one.duplicates) == (66, 200, 0, 0)
+
+
+@settings(max_examples=80, deadline=None)
+@given(
+    st.lists(st.tuples(st.integers(2, 40), st.integers(0, 230)), min_size=1, max_size=12),
+    st.lists(st.integers(min_value=0, max_value=5000), max_size=8),
+    st.integers(min_value=0, max_value=255),
+)
+def test_loss_is_counted_exactly_for_any_bursts_and_swaps(
+    runs: list[tuple[int, int]], swaps: list[int], start: int
+) -> None:
+    # Truth by construction: a sender numbers its messages 0, 1, 2... (sent mod 256); runs
+    # are delivered, bursts of up to 250 (8 bits tell 254 at most; a swap after a burst adds
+    # one to the jump) are not, and a few pairs
+    # of consecutive messages arrive swapped. The counter must find every burst message lost,
+    # each swap as one late arrival, and every delivered message received.
+    delivered: list[int] = []
+    n = 0
+    for run_length, burst in runs:
+        delivered.extend(range(n, n + run_length))
+        n += run_length + burst
+    lost_truth = delivered[-1] + 1 - len(delivered)  # a burst after the last run is not seen
+    late_truth = 0
+    last_swap = -10
+    for where in sorted(set(swaps)):
+        k = where % len(delivered)
+        # (from the second message: one older than the first received cannot be told late)
+        if k >= 1 and k - last_swap >= 3 and k + 1 < len(delivered) and delivered[k + 1] == delivered[k] + 1:
+            delivered[k], delivered[k + 1] = delivered[k + 1], delivered[k]
+            late_truth += 1
+            last_swap = k
+    counter = _SeqCounter()
+    for number in delivered:
+        counter.add((number + start) % 256)
+    assert counter.received == len(delivered)
+    assert counter.late == late_truth
+    assert counter.lost == lost_truth
+    assert counter.duplicates == 0
+
+
+def test_monitor_keeps_up_with_a_fast_relay_and_counts_loss_exactly(tmp_path: Path) -> None:
+    """A ground station relaying over UDP at about 1,500 messages/s for 4 s, with bursts of 1,
+    31, 108 and 200 messages never sent: the monitor reads in its own thread, so the
+    kernel drops nothing, and every message it did not get is counted lost, no more."""
+    receiver = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    receiver.bind(("127.0.0.1", 0))
+    port = receiver.getsockname()[1]
+    receiver.close()
+    encoder = mavlink2.MAVLink(None, srcSystem=1, srcComponent=1)
+    packets: list[bytes] = []
+    index = 0
+    for k in range(6000):
+        if k % 100 == 0:
+            msg: Any = heartbeat(False)
+        elif k % 40 == 0:
+            index += 1
+            msg = feedback(k / 1500, index, 0.0, 0.0)
+        else:
+            msg = mavlink2.MAVLink_attitude_message(k, 0.01, -0.02, 1.5, 0.0, 0.0, 0.0)
+        packets.append(bytes(msg.pack(encoder)))
+        encoder.seq = (encoder.seq + 1) % 256  # pack() numbers the message; send() would count
+    omitted: set[int] = set()
+    for start, length in ((1000, 1), (2000, 31), (3000, 108), (4000, 200)):
+        omitted.update(range(start, start + length))
+    events_omitted = sum(1 for k in omitted if k % 40 == 0 and k % 100 != 0)
+    stop = threading.Event()
+    box: dict[str, Any] = {}
+
+    def run() -> None:
+        try:
+            box["result"] = monitor(f"udpin://127.0.0.1:{port}", None, tmp_path / "fast", stop_event=stop)
+        except BaseException as error:  # handed to the test
+            box["error"] = error
+
+    thread = threading.Thread(target=run, daemon=True)
+    thread.start()
+    sender = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    # heartbeats until the monitor has opened its port and heard the vehicle
+    # (numbered 255, just before the stream's 0: repeated, they are duplicates, not losses)
+    encoder.seq = 255
+    deadline = time.monotonic() + 10
+    while not (tmp_path / "fast" / "flight.tlog").exists() and time.monotonic() < deadline:
+        sender.sendto(bytes(heartbeat(False).pack(encoder)), ("127.0.0.1", port))
+        time.sleep(0.05)
+    assert (tmp_path / "fast" / "flight.tlog").exists(), box.get("error")
+    time.sleep(0.3)
+    encoder_first = len(packets)
+    started = time.monotonic()
+    chunk = 15  # every 10 ms: 1,500 messages/s
+    for k in range(0, len(packets), chunk):
+        for j in range(k, min(k + chunk, len(packets))):
+            if j not in omitted:
+                sender.sendto(packets[j], ("127.0.0.1", port))
+        time.sleep(max(0.0, started + (k + chunk) / 1500 - time.monotonic()))
+    elapsed = time.monotonic() - started
+    time.sleep(1.0)
+    stop.set()
+    thread.join(timeout=15)
+    sender.close()
+    assert "error" not in box, box.get("error")
+    assert encoder_first / elapsed > 1000, f"the sender managed only {encoder_first / elapsed:.0f} msg/s"
+    state = box["result"].state
+    vehicle = next(q for q in state.link if q.system_id == 1)
+    # the packed stream: the heartbeats before it were packed by the same encoder, so its
+    # sequence numbers run on from them; every number not delivered is lost, exactly
+    assert vehicle.lost == len(omitted), (vehicle, len(omitted))
+    assert vehicle.late == 0 and vehicle.received == len(packets) - len(omitted) + 1
+    assert state.events_received == index - events_omitted
+    assert state.photos_taken == index and state.photos_unseen == events_omitted
+    assert state.link_quality_pct is not None and state.link_quality_pct < 100 * (1 - 300 / 6300)
