@@ -325,12 +325,14 @@ class StationTracker:
             self.extra_photos += 1
             return None
         ahead = candidates[candidates > self._last_taken]
-        if self.late_join and self._last_taken < 0 and self.progress < 0:
-            # joined late: the first photo seen says where the vehicle is in the plan
+        if self.late_join and self._last_taken < 0:
+            # joined late: the first photo seen says where the vehicle is in the plan (the
+            # positions seen before it may have moved progress already: keep the furthest)
             station = int(candidates[np.argmin(dist[candidates])])
             self.first_observed = station
             self.taken_by[station] = event_number
-            self.progress = self._last_taken = station
+            self._last_taken = station
+            self.progress = max(self.progress, station)
             return station
         if ahead.size:
             lo, hi = self._near_legs()
@@ -841,6 +843,7 @@ class FlightRecorder:
         self.tracker = StationTracker(plan) if plan is not None else None
         if self.tracker is None:
             return
+        self.tracker.late_join = self.joined_late and self._events_at_change == 0
         for number, event in enumerate(self.events[self._events_at_change :], start=self._events_at_change):
             if event.lat_deg is not None and event.lon_deg is not None:
                 self.tracker.add_event(number, event.lat_deg, event.lon_deg)

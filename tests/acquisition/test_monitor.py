@@ -572,6 +572,8 @@ def gcs_start_mission(url: str) -> None:
                 )
             )
             ack = link.recv({"COMMAND_ACK"}, timeout_s=3.0)
+            while ack is not None and ack.command != command:  # a monitor's answers too
+                ack = link.recv({"COMMAND_ACK"}, timeout_s=3.0)
             assert ack is not None and ack.command == command and ack.result == 0
 
 
@@ -1032,3 +1034,145 @@ def test_monitor_keeps_up_with_a_fast_relay_and_counts_loss_exactly(tmp_path: Pa
     assert state.events_received == index - events_omitted
     assert state.photos_taken == index and state.photos_unseen == events_omitted
     assert state.link_quality_pct is not None and state.link_quality_pct < 100 * (1 - 300 / 6300)
+
+
+# --- what the monitor asks of the vehicle, late joins, a new mission ----------------------------
+
+
+def short_line(east_m: float = 60.0, north_m: float = 0.0, trigger_m: float = 10.0) -> list[Any]:
+    """Take off to 20 m, fly to a line's start, photos every ``trigger_m`` along ``east_m``, RTL:
+    the simulator fires at the start and every ``trigger_m``: east_m // trigger_m + 1 photos."""
+    from planner.mission import MissionItem
+
+    a = offset(10.0, north_m)
+    b = offset(10.0 + east_m + trigger_m / 2, north_m)  # the last photo half a step before
+    return [
+        MissionItem.takeoff(LAT0, LON0, 20.0),
+        MissionItem.waypoint(a[0], a[1], 20.0),
+        MissionItem.cam_trigger_distance(trigger_m),
+        MissionItem.waypoint(b[0], b[1], 20.0),
+        MissionItem.cam_trigger_distance(0.0, trigger_now=False),
+        MissionItem.return_to_launch(),
+    ]
+
+
+def test_monitor_asks_ardupilot_for_its_streams_and_stops_after_landing(tmp_path: Path, run_monitor: Any) -> None:
+    from acquisition.telemetry.tlog import read_tlog as read
+
+    from planner.mission import HomePosition
+
+    home = HomePosition(lat_deg=LAT0, lon_deg=LON0)
+    with SimulatedVehicle(speedup=60, home=home, boot_delay_s=0.0, gps_fix_s=0.2) as vehicle:
+        assert vehicle.streams_on_request  # ArduPilot's flavour: nothing periodic until asked
+        vehicle.load_mission(short_line())
+        url = vehicle.url_for_client
+        box = run_monitor(url, None, tmp_path / "flight")
+        gcs_start_mission(url)
+        box["thread"].join(timeout=60)
+        assert not box["thread"].is_alive() and "error" not in box, box.get("error")
+        shots = list(vehicle.flight.shots)
+        rates = vehicle.flight.stream_rates_hz()
+        asked = vehicle.received_counts.get("COMMAND_LONG", 0)
+    result: MonitorResult = box["result"]
+    assert result.reason is StopReason.LANDED  # landed and disarmed: it stopped by itself
+    assert rates["GLOBAL_POSITION_INT"] == pytest.approx(10.0) and rates["SYSTEM_TIME"] == pytest.approx(1.0)
+    assert rates["ATTITUDE"] == pytest.approx(10.0) and rates["MISSION_CURRENT"] == pytest.approx(1.0)
+    assert asked >= 5
+    state = result.state
+    assert state.missing_streams == () and state.landed_state == 1
+    flight = read(result.tlog_path)
+    assert flight.positions is not None and len(flight.positions) > 50  # positions recorded
+    assert flight.attitudes is not None and len(flight.attitudes) > 50
+    assert len(shots) == 7 and state.photos_taken == 7
+    # no plan folder: the stations are the vehicle's own mission, read back and replayed
+    assert state.stations_from == "vehicle" and state.photos_planned == 7
+    assert state.missed_stations == () and state.extra_photos == 0
+
+
+class _Mute(SimulatedVehicle):
+    """A vehicle whose firmware honours no stream request (neither way)."""
+
+    def _on_request_data_stream(self, msg: Any) -> None:
+        return
+
+    def _run_command(self, command: int, params: Any) -> int:
+        if command == 511:
+            return int(mavlink2.MAV_RESULT_UNSUPPORTED)
+        return super()._run_command(command, params)
+
+
+def test_streams_that_never_come_are_named(
+    tmp_path: Path, run_monitor: Any, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    import acquisition.monitor_link as monitor_link
+
+    monkeypatch.setattr(monitor_link, "STREAM_CHECK_S", 0.8)
+    with _Mute(speedup=10, boot_delay_s=0.0, gps_fix_s=0.2) as vehicle:
+        box = run_monitor(vehicle.url_for_client, None, tmp_path / "flight")
+        deadline = time.monotonic() + 15
+        while time.monotonic() < deadline and not (box["states"] and box["states"][-1].missing_streams):
+            time.sleep(0.1)
+        legacy = vehicle.received_counts.get("REQUEST_DATA_STREAM", 0)
+    states = box["states"]
+    assert states and set(states[-1].missing_streams) == {
+        "GLOBAL_POSITION_INT",
+        "ATTITUDE",
+        "SYSTEM_TIME",
+        "MISSION_CURRENT",
+    }
+    assert legacy >= 4  # the fallback was tried: REQUEST_DATA_STREAM for each group
+    warning = next(r.getMessage() for r in caplog.records if "does not send" in r.getMessage())
+    assert "GLOBAL_POSITION_INT" in warning and "SRn_POSITION" in warning
+
+
+def test_a_monitor_started_mid_flight_says_so_and_misses_nothing(tmp_path: Path, run_monitor: Any) -> None:
+    from planner.mission import HomePosition
+
+    home = HomePosition(lat_deg=LAT0, lon_deg=LON0)
+    with SimulatedVehicle(
+        speedup=15, home=home, boot_delay_s=0.0, gps_fix_s=0.2, streams_on_request=False
+    ) as vehicle:
+        vehicle.load_mission(short_line(east_m=100.0))
+        assert vehicle.wait_sim_time(0.3)  # a GPS fix, or no arming
+        gcs_start_mission(vehicle.url_for_client)
+        deadline = time.monotonic() + 30
+        while len(vehicle.flight.shots) < 3 and time.monotonic() < deadline:
+            time.sleep(0.01)
+        box = run_monitor(vehicle.url_for_client, None, tmp_path / "flight")
+        box["thread"].join(timeout=60)
+        assert not box["thread"].is_alive() and "error" not in box, box.get("error")
+        shots = list(vehicle.flight.shots)
+    state: MonitorState = box["result"].state
+    seen = sorted(int(s) for s in read_tlog(box["result"].tlog_path).events.seq)
+    assert len(shots) == 11
+    assert state.joined_late and state.photos_before_join == seen[0] - 1 >= 3
+    assert state.photos_taken == 11 and state.events_received == len(seen) == 11 - state.photos_before_join
+    # the stations before the join are not counted as missed
+    assert state.missed_stations == () and state.photos_planned == 11
+
+
+def test_a_new_mission_uploaded_in_the_field_is_followed(tmp_path: Path, run_monitor: Any) -> None:
+    from planner.mission import HomePosition, Mission
+
+    home = HomePosition(lat_deg=LAT0, lon_deg=LON0)
+    first, refly = short_line(east_m=40.0), short_line(east_m=80.0, north_m=30.0)
+    refly.insert(1, refly[1])  # another item count: MISSION_CURRENT's total changes
+    with SimulatedVehicle(speedup=30, home=home, boot_delay_s=0.0, gps_fix_s=0.2) as vehicle:
+        vehicle.load_mission(first)
+        url = vehicle.url_for_client
+        box = run_monitor(url, None, tmp_path / "flight", stop_when_landed=False)
+        deadline = time.monotonic() + 15
+        while time.monotonic() < deadline and not (box["states"] and box["states"][-1].photos_planned == 5):
+            time.sleep(0.05)
+        assert box["states"][-1].photos_planned == 5  # the first mission: 40 m / 10 m + 1
+        with Link.open(url, heartbeat_timeout_s=5.0, source_component=191) as link:
+            upload_mission(link, Mission(items=tuple(refly), home=home, autopilot=Autopilot.ARDUPILOT))
+        gcs_start_mission(url)
+        assert vehicle.wait_landed(60)
+        time.sleep(1.5)
+        shots = len(vehicle.flight.shots)
+        states = box["states"]
+    assert shots == 9
+    last = states[-1]
+    assert last.mission_changes >= 1 and last.stations_from == "vehicle"
+    assert last.photos_planned == 9 and last.stations_taken == 9 and last.missed_stations == ()
