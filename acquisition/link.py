@@ -66,9 +66,8 @@ from typing import Any
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from planner.mission import Autopilot, VehicleType
-
 from planner.errors import InputError
+from planner.mission import Autopilot, VehicleType
 
 from .errors import LinkError
 
@@ -78,6 +77,7 @@ log = logging.getLogger(__name__)
 class LinkInputError(InputError, LinkError):
     """A link option is wrong (a URL that is not one, a signing key file that cannot be read
     or is not a key): bad usage, exit code 2, not a failed connection."""
+
 
 #: The URL schemes :meth:`Link.open` accepts, with an example each (used in error messages).
 URL_EXAMPLES: dict[str, str] = {
@@ -205,7 +205,9 @@ def load_signing_key(
         try:
             data = file.read_bytes()
         except OSError as error:
-            raise LinkInputError(f"cannot read the signing key file {file}: {error.strerror or error}") from error
+            raise LinkInputError(
+                f"cannot read the signing key file {file}: {error.strerror or error}"
+            ) from error
         # 32 bytes that are all printable ASCII are far likelier a passphrase than a random key
         if len(data) == 32 and not re.fullmatch(rb"[ -~]{32}", data):
             return data

@@ -650,9 +650,7 @@ def _validate(mission: Mission, mission_type: MissionType, max_alt_rel_home_m: f
                 "the fence failed validation and will not be sent:\n  " + "\n  ".join(problems)
             )
     except MissionValidationError as error:
-        raise MissionInputError(
-            f"{error}\nNothing was sent: the vehicle's mission is unchanged."
-        ) from error
+        raise MissionInputError(f"{error}\nNothing was sent: the vehicle's mission is unchanged.") from error
 
 
 # AP_Mission::sanity_check_params: the params (1-4) that may be NaN; any other NaN is refused

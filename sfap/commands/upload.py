@@ -16,8 +16,8 @@ from acquisition.errors import LinkError
 from acquisition.link import SIGNING_KEY_ENV, Link, load_signing_key
 from acquisition.transfer import (
     DEFAULT_RETRIES,
-    MissionInputError,
     DEFAULT_TIMEOUT_S,
+    MissionInputError,
     MissionVerificationError,
     TransferPhase,
     upload_mission,

@@ -27,12 +27,12 @@ from pyproj import Geod
 from acquisition.link import Link
 from acquisition.monitor import (
     CSV_COLUMNS,
-    _SeqCounter,
     FlightRecorder,
     MonitorResult,
     MonitorState,
     StationPlan,
     StopReason,
+    _SeqCounter,
     load_station_plan,
     monitor,
 )
@@ -1056,9 +1056,10 @@ def short_line(east_m: float = 60.0, north_m: float = 0.0, trigger_m: float = 10
     ]
 
 
-def test_monitor_asks_ardupilot_for_its_streams_and_stops_after_landing(tmp_path: Path, run_monitor: Any) -> None:
+def test_monitor_asks_ardupilot_for_its_streams_and_stops_after_landing(
+    tmp_path: Path, run_monitor: Any
+) -> None:
     from acquisition.telemetry.tlog import read_tlog as read
-
     from planner.mission import HomePosition
 
     home = HomePosition(lat_deg=LAT0, lon_deg=LON0)

@@ -1076,7 +1076,9 @@ def test_px4_streams_from_boot() -> None:
 def test_vehicle_moves_to_the_uploaded_missions_home_before_its_first_flight() -> None:
     far = HomePosition(lat_deg=HOME.lat_deg + 0.65, lon_deg=HOME.lon_deg - 0.3, alt_amsl_m=412.5)
     items = survey_items(home_first=True, n=3, shift_deg=0.65)
-    items[0] = MissionItem(command=16, frame=MavFrame.GLOBAL, param5=far.lat_deg, param6=far.lon_deg, param7=412.5)
+    items[0] = MissionItem(
+        command=16, frame=MavFrame.GLOBAL, param5=far.lat_deg, param6=far.lon_deg, param7=412.5
+    )
     with SimulatedVehicle(boot_delay_s=0.0, gps_fix_s=0.0, home=HOME, follow_mission_home=True) as vehicle:
         gcs = connect(vehicle)
         result, _ = gcs.upload(items)

@@ -32,8 +32,8 @@ from acquisition.mavlink_items import (
 )
 from acquisition.simulator.server import FaultConfig, SimulatedVehicle
 from acquisition.transfer import (
-    MissionTooLargeError,
     MissionState,
+    MissionTooLargeError,
     MissionTransferError,
     MissionVerificationError,
     TransferPhase,

@@ -78,7 +78,9 @@ def test_readme_tour_runs_as_written(tmp_path: Path) -> None:
             done = subprocess.run(
                 ["bash", "-c", command], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600
             )
-            assert done.returncode == 0, f"`{command}` exited {done.returncode}:\n{done.stdout}\n{done.stderr}"
+            assert done.returncode == 0, (
+                f"`{command}` exited {done.returncode}:\n{done.stdout}\n{done.stderr}"
+            )
             assert "Traceback" not in done.stderr, done.stderr
             outputs.setdefault(name, []).append(done)
         for command, process in background:
