@@ -824,9 +824,13 @@ class FlightRecorder:
             return
         key = (int(total), int(mission_id or 0))
         if self._mission_key is not None and key != self._mission_key:
-            self.mission_changes += 1
-            self.mission_changed_at_s = time.monotonic()
-            self._events_at_change = len(self.events)
+            now = time.monotonic()
+            # an upload changes the total more than once (truncated, then complete): one change
+            settled = self.mission_changed_at_s is None or now - self.mission_changed_at_s > 5.0
+            self.mission_changes += 1 if settled else 0
+            self.mission_changed_at_s = now
+            if settled:
+                self._events_at_change = len(self.events)
             log.warning(
                 "the vehicle's mission changed (%d items%s, was %d): it will be read to follow it",
                 key[0],

@@ -324,13 +324,15 @@ class MissionFollower:
     def _read(self, channel: MissionChannel) -> None:
         from .transfer import download_mission, verify_readback
 
+        wanted_since = self._wanted_since
         try:
             items = download_mission(channel, timeout_s=1.5, retries=2)
             body = items[1:] if channel.autopilot is Autopilot.ARDUPILOT else items
             same = self.plan_items is not None and not verify_readback(
                 self.plan_items, items, channel.autopilot, channel.vehicle_type
             )
-            self._wanted_since = None
+            if self._wanted_since == wanted_since:  # else it changed again meanwhile: read again
+                self._wanted_since = None
             self.reads += 1
             self._result = (list(body), same)
         except (AcquisitionError, LinkError) as error:
