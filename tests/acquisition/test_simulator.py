@@ -965,6 +965,8 @@ def test_flight_through_the_link_writes_a_readable_tlog(autopilot: Autopilot, tm
         if autopilot is Autopilot.PX4:
             items = items[1:]
         gcs = connect(v, timeout_s=1.0)
+        # every stream at 4 Hz, as MAVProxy asks at connection (REQUEST_DATA_STREAM, ALL)
+        gcs.conn.mav.request_data_stream_send(1, 1, 0, 4, 1)
         assert v.wait_sim_time(1.5)
         assert gcs.upload(items)[0] == ACCEPTED
         assert gcs.command(400, 1.0) == 0
