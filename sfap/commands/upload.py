@@ -193,7 +193,9 @@ def command(
 
     Exits 0 only when every item read back matches what was sent (latitude and longitude to
     the degE7 unit, parameters to float32); otherwise it lists the items that differ, says what
-    the vehicle now holds, and exits 1.
+    the vehicle now holds, and exits 1. A mission larger than the vehicle holds is refused at
+    once with the excess (exit 1); a mission that fails validation, or was planned for the other
+    autopilot, is not sent (exit 2). Warns when the first waypoint is far from the vehicle's home.
 
     Example: sfap upload out/gully/mission.plan --connect serial:///dev/ttyUSB0:57600
     """
