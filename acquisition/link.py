@@ -66,11 +66,18 @@ from typing import Any
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
+from planner.errors import InputError
 from planner.mission import Autopilot, VehicleType
 
 from .errors import LinkError
 
 log = logging.getLogger(__name__)
+
+
+class LinkInputError(InputError, LinkError):
+    """A link option is wrong (a URL that is not one, a signing key file that cannot be read
+    or is not a key): bad usage, exit code 2, not a failed connection."""
+
 
 #: The URL schemes :meth:`Link.open` accepts, with an example each (used in error messages).
 URL_EXAMPLES: dict[str, str] = {
@@ -129,10 +136,10 @@ class LinkUrl:
         valid = ", ".join(URL_EXAMPLES.values())
         match = re.fullmatch(r"([A-Za-z][A-Za-z0-9+.-]*)://(.*)", url.strip())
         if match is None:
-            raise LinkError(f"{url!r} is not a link URL; use one of: {valid}")
+            raise LinkInputError(f"{url!r} is not a link URL; use one of: {valid}")
         scheme, rest = match.group(1).lower(), match.group(2)
         if scheme not in URL_EXAMPLES:
-            raise LinkError(
+            raise LinkInputError(
                 f"unknown link scheme {scheme!r} in {url!r}; valid schemes are "
                 f"{', '.join(URL_EXAMPLES)} (for example {valid})"
             )
@@ -142,21 +149,21 @@ class LinkUrl:
             if sep and tail.isdigit():
                 device, baud = head, int(tail)
             elif sep and tail:
-                raise LinkError(
+                raise LinkInputError(
                     f"baud rate {tail!r} in {url!r} is not a number; for example {URL_EXAMPLES['serial']}"
                 )
             if not device:
-                raise LinkError(f"no serial device in {url!r}; for example {URL_EXAMPLES['serial']}")
+                raise LinkInputError(f"no serial device in {url!r}; for example {URL_EXAMPLES['serial']}")
             if baud <= 0:
-                raise LinkError(f"baud rate {baud} in {url!r} must be positive (57600, 115200...)")
+                raise LinkInputError(f"baud rate {baud} in {url!r} must be positive (57600, 115200...)")
             return cls(text=url, scheme=scheme, device=device, baud=baud)
         host, sep, port_text = rest.rpartition(":")
         host = host.strip("[]")
         if not sep or not host or not port_text.isdigit():
-            raise LinkError(f"{url!r} needs a host and a port, for example {URL_EXAMPLES[scheme]}")
+            raise LinkInputError(f"{url!r} needs a host and a port, for example {URL_EXAMPLES[scheme]}")
         port = int(port_text)
         if not 0 <= port <= 65535:
-            raise LinkError(f"port {port} in {url!r} is out of range 0-65535")
+            raise LinkInputError(f"port {port} in {url!r} is out of range 0-65535")
         return cls(text=url, scheme=scheme, host=host, port=port)
 
     @property
@@ -178,7 +185,7 @@ def signing_key_from_text(text: str) -> bytes:
     """
     stripped = text.strip()
     if not stripped:
-        raise LinkError("the signing key is empty; give 64 hex digits or a passphrase")
+        raise LinkInputError("the signing key is empty; give 64 hex digits or a passphrase")
     if re.fullmatch(r"[0-9A-Fa-f]{64}", stripped):
         return bytes.fromhex(stripped)
     return hashlib.sha256(stripped.encode("utf-8")).digest()
@@ -198,14 +205,16 @@ def load_signing_key(
         try:
             data = file.read_bytes()
         except OSError as error:
-            raise LinkError(f"cannot read the signing key file {file}: {error.strerror or error}") from error
+            raise LinkInputError(
+                f"cannot read the signing key file {file}: {error.strerror or error}"
+            ) from error
         # 32 bytes that are all printable ASCII are far likelier a passphrase than a random key
         if len(data) == 32 and not re.fullmatch(rb"[ -~]{32}", data):
             return data
         try:
             text = data.decode("utf-8")
         except UnicodeDecodeError as error:
-            raise LinkError(
+            raise LinkInputError(
                 f"signing key file {file} holds {len(data)} bytes that are not text; a raw key "
                 f"must be exactly 32 bytes (or write 64 hex digits or a passphrase)"
             ) from error
@@ -305,15 +314,15 @@ class Link:
         """
         parsed = LinkUrl.parse(url)
         if require_signing and signing_key is None:
-            raise LinkError(
+            raise LinkInputError(
                 f"--require-signing needs a key: give --signing-key FILE or set {SIGNING_KEY_ENV}"
             )
         if signing_key is not None and len(signing_key) != 32:
-            raise LinkError(
+            raise LinkInputError(
                 f"a MAVLink signing key is 32 bytes, this one has {len(signing_key)}; "
                 f"see load_signing_key for the key file forms"
             )
-        conn = _open_transport(parsed, source_system, source_component)
+        conn = _open_with_patience(parsed, source_system, source_component, heartbeat_timeout_s)
         link: Link | None = None
         try:
             link = cls(
@@ -610,6 +619,44 @@ def _close_quietly(conn: Any) -> None:
         conn.close()
     except Exception as error:  # a port that is already gone: nothing left to release
         log.debug("close: %s", error)
+
+
+#: Receive buffer asked of the operating system for network links (bytes; Linux caps it at
+#: net.core.rmem_max). A relaying ground station sends in bursts of thousands of messages a
+#: second; the default UDP buffer (about 200 kB, some 200 datagrams) overflows in a tenth of a
+#: second when the reading thread is not scheduled, and the kernel drops what does not fit.
+RECEIVE_BUFFER_BYTES = 4 << 20
+
+
+def _enlarge_receive_buffer(conn: Any) -> None:
+    port = getattr(conn, "port", None)
+    if isinstance(port, socket.socket):
+        try:
+            port.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, RECEIVE_BUFFER_BYTES)
+        except OSError as error:  # a smaller buffer still works
+            log.debug("receive buffer not enlarged: %s", error)
+
+
+#: How long (s, at most; never more than the heartbeat timeout) a ``tcp://`` connection that
+#: is refused is tried again: a simulator or SITL started a moment ago is not listening yet.
+CONNECT_PATIENCE_S = 5.0
+
+
+def _open_with_patience(url: LinkUrl, source_system: int, source_component: int, timeout_s: float) -> Any:
+    """:func:`_open_transport`; a refused ``tcp://`` connection is tried again every 0.2 s for
+    up to min(:data:`CONNECT_PATIENCE_S`, ``timeout_s``) seconds."""
+    deadline = time.monotonic() + min(CONNECT_PATIENCE_S, timeout_s)
+    while True:
+        try:
+            conn = _open_transport(url, source_system, source_component)
+            if url.scheme != "serial":
+                _enlarge_receive_buffer(conn)
+            return conn
+        except LinkError as error:
+            refused = isinstance(error.__cause__, ConnectionRefusedError)
+            if not refused or url.scheme != "tcp" or time.monotonic() + 0.2 > deadline:
+                raise
+        time.sleep(0.2)
 
 
 def _open_transport(url: LinkUrl, source_system: int, source_component: int) -> Any:

@@ -70,11 +70,16 @@ Missed stations (the definition :class:`StationTracker` implements)
       passed station; the missed list is recomputed, never latched.
 
 Link quality
-    Per sender (system, component), from MAVLink sequence numbers (as pymavlink's mavutil
-    counts ``mav_loss``): a jump of ``k`` (modulo 256, ``1 <= k < 128``) means ``k - 1``
-    messages lost; ``k == 0`` a duplicate; ``k >= 128`` a message arriving late
-    (reordered), which recovers one counted as lost. Quality is received / (received + lost),
-    in percent. Every message received counts, from every system, whoever it is addressed
+    Per sender (system, component), from MAVLink sequence numbers (8 bits, modular). With
+    ``last`` the sequence number of the sender's newest message and ``k = (seq - last) mod
+    256``: ``k == 0`` is a duplicate (not counted as received); a message whose number was
+    counted lost within the last :data:`LATE_WINDOW` numbers arrives *late* (reordered): it
+    is received and no longer lost; any other ``k`` (1-255) is a forward jump, ``k - 1``
+    messages lost. So a burst of 200 lost messages counts 200, never "a late arrival" (an older
+    rule read every jump of 128 or more as reordering, which hid long bursts). A duplicate of
+    a message older than the newest is indistinguishable from a burst of ``k - 1`` losses and
+    counts as one (relays deliver in order; duplicates come back to back). Quality is received
+    / (received + lost), in percent. Every message received counts, from every system, whoever it is addressed
     to (a message left out would show as a gap: a false loss). The count restarts with
     the first message of each connection attempt after a drop (what was sent while the link
     was down cannot be told from sequence numbers modulo 256); drops are counted separately.
@@ -88,6 +93,7 @@ import json
 import logging
 import math
 import os
+import queue
 import struct
 import threading
 import time
@@ -268,6 +274,10 @@ class StationTracker:
         self.flight_over = False
         self._last_taken = -1
         self._pending_jump_leg: int | None = None
+        #: With a late join (the monitor started after the first photos), the first station
+        #: observed; the stations before it are neither taken nor missed: not seen.
+        self.late_join = False
+        self.first_observed = 0
         if n:
             self.frame: LocalFrame | None = LocalFrame.utm_for(
                 float(np.mean(plan.lon_deg)), float(np.mean(plan.lat_deg))
@@ -315,6 +325,15 @@ class StationTracker:
             self.extra_photos += 1
             return None
         ahead = candidates[candidates > self._last_taken]
+        if self.late_join and self._last_taken < 0:
+            # joined late: the first photo seen says where the vehicle is in the plan (the
+            # positions seen before it may have moved progress already: keep the furthest)
+            station = int(candidates[np.argmin(dist[candidates])])
+            self.first_observed = station
+            self.taken_by[station] = event_number
+            self._last_taken = station
+            self.progress = max(self.progress, station)
+            return station
         if ahead.size:
             lo, hi = self._near_legs()
             near = ahead[(ahead >= lo) & (ahead < hi)]
@@ -349,6 +368,8 @@ class StationTracker:
         if speed < MIN_ALONG_SPEED_M_S:
             return
         course = math.degrees(math.atan2(east_m_s, north_m_s)) % 360.0
+        if self.late_join and self.progress < 0:
+            return  # where it is in the plan is first learned from a photo
         lo, hi = self._near_legs()
         lo = max(lo, self.progress + 1)
         if lo >= hi:
@@ -375,9 +396,11 @@ class StationTracker:
         return len(self) if self.flight_over else max(self.progress, 0)
 
     def missed(self) -> list[int]:
-        """Indices of the stations passed with no photo within their radius, in flight order."""
+        """Indices of the stations passed with no photo within their radius, in flight order
+        (after a late join, only from the first station observed)."""
         limit = self.passed_count
-        return [int(i) for i in np.flatnonzero(self.taken_by[:limit] < 0)]
+        start = self.first_observed if self.late_join else 0
+        return [int(i) for i in np.flatnonzero(self.taken_by[:limit] < 0) if i >= start]
 
 
 # --- link quality -------------------------------------------------------------------------------
@@ -407,13 +430,22 @@ class LinkQuality:
         return 100.0 * self.received / self.expected if self.expected else None
 
 
+#: How far back (in sequence numbers) a message counted lost may still arrive late.
+LATE_WINDOW = 16
+
+
 @dataclass
 class _SeqCounter:
+    """Loss from one sender's 8-bit sequence numbers (the rule: module docstring)."""
+
     last: int | None = None
     received: int = 0
     lost: int = 0
     duplicates: int = 0
     late: int = 0
+    # sequence numbers counted lost in the last LATE_WINDOW steps: seq -> steps ago is implicit
+    missing: dict[int, int] = field(default_factory=dict)  # seq -> position when counted lost
+    position: int = 0  # how many sequence numbers the sender has moved through
 
     def add(self, seq: int) -> None:
         if self.last is None:
@@ -423,14 +455,24 @@ class _SeqCounter:
         step = (seq - self.last) % 256
         if step == 0:
             self.duplicates += 1
-        elif step < 128:
-            self.received += 1
-            self.lost += step - 1
-            self.last = seq
-        else:
+            return
+        counted_at = self.missing.pop(seq, None)
+        if counted_at is not None and self.position - counted_at < LATE_WINDOW:
+            # counted lost a few messages ago and here it is: late (reordered), not lost
             self.received += 1
             self.late += 1
-            self.lost = max(self.lost - 1, 0)
+            self.lost -= 1
+            return
+        # a forward jump of `step` (1..255): step - 1 messages never arrived
+        self.received += 1
+        self.lost += step - 1
+        for k in range(1, min(step, LATE_WINDOW + 1)):
+            self.missing[(seq - k) % 256] = self.position + step - k
+        self.position += step
+        self.last = seq
+        if len(self.missing) > 4 * LATE_WINDOW:
+            horizon = self.position - LATE_WINDOW
+            self.missing = {s_: p_ for s_, p_ in self.missing.items() if p_ >= horizon}
 
 
 # --- state --------------------------------------------------------------------------------------
@@ -459,7 +501,13 @@ class MonitorState:
 
     - ``mission_seq`` / ``mission_total``: MISSION_CURRENT (the vehicle's numbering;
       ArduPilot counts home as item 0); ``mission_state``: its MISSION_STATE (None: not sent).
-    - ``photos_taken``: distinct camera events; ``photos_planned``: planned stations;
+    - ``photos_taken``: photos the vehicle took during the recording, from its own image
+      index (CAMERA_FEEDBACK img_idx, CAMERA_IMAGE_CAPTURED image_index): the highest index
+      seen minus the first of the flight, plus one; ``events_received``: distinct camera
+      events recorded; ``photos_unseen``: indices never received (events lost on the link);
+      ``photos_before_join`` / ``joined_late``: the monitor started after the first photos
+      (the vehicle was already armed, or its first index seen was past the first), so those
+      photos have no event in this recording; ``photos_planned``: planned stations;
       ``stations_taken`` / ``stations_passed`` / ``missed_stations`` (station indices, flight
       order) / ``extra_photos``: see the module docstring.
     - ``link``: quality per system; ``link_quality_pct``: all systems together (None before
@@ -467,13 +515,23 @@ class MonitorState:
     - ``connected``, ``drops`` (times the link was lost), ``reconnects`` (times it came back),
       ``last_drop``: why it was last lost.
     - ``armed``, ``flight_over`` (disarmed after having flown: armed and more than
-      :data:`FLYING_ALT_REL_HOME_M` above home).
+      :data:`FLYING_ALT_REL_HOME_M` above home, or EXTENDED_SYS_STATE in the air);
+      ``landed_state``: the last EXTENDED_SYS_STATE landed state (1 on the ground, 2 in the
+      air, 3 taking off, 4 landing; None: not sent).
+    - ``missing_streams``: telemetry the monitor asked for and has not received (see
+      :func:`monitor`); ``mission_changes``: times the vehicle's mission changed during the
+      recording; ``stations_from``: what the stations come from ("plan": the plan folder;
+      "vehicle": the mission the vehicle holds; None: no stations).
     """
 
     mission_seq: int | None = None
     mission_total: int | None = None
     mission_state: int | None = None
     photos_taken: int = 0
+    events_received: int = 0
+    photos_unseen: int = 0
+    photos_before_join: int = 0
+    joined_late: bool = False
     photos_planned: int = 0
     stations_taken: int = 0
     stations_passed: int = 0
@@ -491,6 +549,10 @@ class MonitorState:
     last_drop: str | None = None
     armed: bool = False
     flight_over: bool = False
+    landed_state: int | None = None
+    missing_streams: tuple[str, ...] = ()
+    mission_changes: int = 0
+    stations_from: str | None = None
 
     def as_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {}
@@ -588,6 +650,22 @@ class FlightRecorder:
         self._flew = False  # armed and above FLYING_ALT_REL_HOME_M since the last arming
         self._flight_over = False
         self._mission: tuple[int | None, int | None, int | None] = (None, None, None)
+        self._mission_key: tuple[int, int] | None = None  # (total, mission_id) last seen
+        self.mission_changes = 0
+        self.mission_changed_at_s: float | None = None  # monotonic s of the last change seen
+        self._events_at_change = 0
+        self.stations_from: str | None = "plan" if plan is not None else None
+        self.last_seen_s: dict[str, float] = {}  # vehicle message type -> monotonic s
+        self.missing_streams: tuple[str, ...] = ()
+        self._landed_state: int | None = None
+        self._first_heartbeat_armed: bool | None = None
+        self._seen_disarmed = False
+        self._index_first: int | None = None
+        self._index_max: int | None = None
+        self._index_origin = 1
+        self._indices: set[int] = set()
+        self._indexed_events = 0
+        self.joined_late = False
         self.messages = 0
         self.duplicate_events = 0
         self.failed_captures = 0
@@ -652,6 +730,8 @@ class FlightRecorder:
         if self.vehicle is not None and src[0] != self.vehicle[0]:
             return None  # another system (a second vehicle, another GCS): logged only
         from_autopilot = self.vehicle is None or src == self.vehicle
+        if from_autopilot:
+            self.last_seen_s[kind] = time.monotonic()
         event: CameraEvent | None = None
         if kind == "SYSTEM_TIME" and from_autopilot:
             self._last_boot_ms = float(msg.time_boot_ms)
@@ -673,6 +753,11 @@ class FlightRecorder:
                 int(total) if total not in (None, 0, 65535) else None,
                 int(state) if state not in (None, 0) else None,
             )
+            self._watch_mission(total, getattr(msg, "mission_id", None))
+        elif kind == "EXTENDED_SYS_STATE" and from_autopilot:
+            self._landed_state = int(msg.landed_state) or None
+            if self._armed and self._landed_state in (2, 3, 4):
+                self._flew = True
         elif kind == "CAMERA_FEEDBACK" and from_autopilot:
             event = self._on_camera_feedback(msg)
         elif kind == "CAMERA_IMAGE_CAPTURED":
@@ -702,19 +787,88 @@ class FlightRecorder:
             return
         self._last_heartbeat_wall_s = time.monotonic()
         armed = bool(int(msg.base_mode) & _MAV_MODE_FLAG_SAFETY_ARMED)
+        if self._first_heartbeat_armed is None:
+            self._first_heartbeat_armed = armed
+        if not armed:
+            self._seen_disarmed = True
         if armed and not self._armed and self._flight_over:
             log.info("the vehicle armed again: a new flight in the same recording")
             self._flight_over = False
             self._flew = False
             if self.tracker is not None:
                 self.tracker.flight_over = False
-        elif not armed and self._flew and not self._flight_over:
+        elif not armed and self._flew and not self._flight_over and self._landed_state not in (2, 4):
             # an arming and disarming on the ground (checks before take-off) is not a flight
             self._flight_over = True
             log.info("the vehicle landed and disarmed: the flight is over")
             if self.tracker is not None:
                 self.tracker.end_flight()
         self._armed = armed
+
+    def _set_late_join(self, why: str) -> None:
+        if self.joined_late:
+            return
+        self.joined_late = True
+        if self.tracker is not None and self.tracker.taken_count == 0:
+            self.tracker.late_join = True
+        log.warning(
+            "joined late: %s; photos taken before now have no camera event in this recording "
+            "(they are counted from the vehicle's image index, not as missed)",
+            why,
+        )
+
+    def _watch_mission(self, total: Any, mission_id: Any) -> None:
+        """MISSION_CURRENT's total and mission_id (opaque id, 0 when not sent) name the
+        mission the vehicle holds; a change is a new mission (a re-fly uploaded)."""
+        if total is None:
+            return
+        key = (int(total), int(mission_id or 0))
+        if self._mission_key is not None and key != self._mission_key:
+            now = time.monotonic()
+            # an upload changes the total more than once (truncated, then complete): one change
+            settled = self.mission_changed_at_s is None or now - self.mission_changed_at_s > 5.0
+            self.mission_changes += 1 if settled else 0
+            self.mission_changed_at_s = now
+            if settled:
+                self._events_at_change = len(self.events)
+            log.warning(
+                "the vehicle's mission changed (%d items%s, was %d): it will be read to follow it",
+                key[0],
+                f", id {key[1]}" if key[1] else "",
+                self._mission_key[0],
+            )
+        self._mission_key = key
+
+    def replace_plan(self, plan: StationPlan | None, *, source: str) -> None:
+        """Count from now on against ``plan`` (the stations of the mission the vehicle holds);
+        the camera events recorded since the mission changed are matched to it again."""
+        self.plan = plan
+        self.stations_from = source if plan is not None else None
+        self.tracker = StationTracker(plan) if plan is not None else None
+        if self.tracker is None:
+            return
+        self.tracker.late_join = self.joined_late and self._events_at_change == 0
+        for number, event in enumerate(self.events[self._events_at_change :], start=self._events_at_change):
+            if event.lat_deg is not None and event.lon_deg is not None:
+                self.tracker.add_event(number, event.lat_deg, event.lon_deg)
+            else:
+                self.tracker.extra_photos += 1
+        if self._flight_over:
+            self.tracker.end_flight()
+
+    def _note_index(self, index: int, origin: int) -> None:
+        """A camera event with the vehicle's image index ``index`` (first photo: ``origin``)."""
+        if self._index_first is None or index < self._index_first:
+            if self._index_first is None:
+                self._index_origin = origin
+                if index > origin and not self._seen_disarmed:
+                    self._set_late_join(
+                        f"the first camera event has image index {index} (the first photo is {origin})"
+                    )
+            self._index_first = index
+        self._index_max = index if self._index_max is None else max(self._index_max, index)
+        self._indices.add(index)
+        self._indexed_events += 1
 
     def _vehicle_utc_s(self, boot_s: float) -> float | None:
         return None if self._boot_offset_s is None else boot_s + self._boot_offset_s
@@ -823,6 +977,10 @@ class FlightRecorder:
             )
 
     def _add_event(self, **values: Any) -> CameraEvent:
+        if values["source"] == "CAMERA_FEEDBACK":
+            self._note_index(int(values["seq"]), 1)
+        elif values["source"] == "CAMERA_IMAGE_CAPTURED":
+            self._note_index(int(values["seq"]), 0)
         station = None
         if self.tracker is not None and values["lat_deg"] is not None:
             station = self.tracker.add_event(len(self.events), values["lat_deg"], values["lon_deg"])
@@ -924,11 +1082,23 @@ class FlightRecorder:
         expected = sum(q.expected for q in link)
         tracker = self.tracker
         age = None if self._last_heartbeat_wall_s is None else time.monotonic() - self._last_heartbeat_wall_s
+        events = len(self.events)
+        photos, unseen, before = events, 0, 0
+        if self._index_first is not None and self._index_max is not None:
+            span = self._index_max - self._index_first + 1
+            unseen = max(span - len(self._indices), 0)
+            before = self._index_first - self._index_origin if self.joined_late else 0
+            # events without an index (CAMERA_TRIGGER alone) add to what the indices say
+            photos = span + before + (events - self._indexed_events)
         return MonitorState(
             mission_seq=self._mission[0],
             mission_total=self._mission[1],
             mission_state=self._mission[2],
-            photos_taken=len(self.events),
+            photos_taken=max(photos, events),
+            events_received=events,
+            photos_unseen=unseen,
+            photos_before_join=max(before, 0),
+            joined_late=self.joined_late,
             photos_planned=len(tracker) if tracker is not None else 0,
             stations_taken=tracker.taken_count if tracker is not None else 0,
             stations_passed=tracker.passed_count if tracker is not None else 0,
@@ -946,6 +1116,10 @@ class FlightRecorder:
             last_drop=self.last_drop,
             armed=self._armed,
             flight_over=self._flight_over,
+            landed_state=self._landed_state,
+            missing_streams=self.missing_streams,
+            mission_changes=self.mission_changes,
+            stations_from=self.stations_from,
         )
 
 
@@ -1004,22 +1178,20 @@ def monitor(
     (the recording up to the drop is kept, and the message says where).
     """
     from .link import Link
+    from .mission_stations import station_columns
+    from .monitor_link import Dropped, LinkReader, MissionFollower, StreamRequests
 
     plan = load_station_plan(plan_dir) if plan_dir is not None else None
     check_recording_target(out_dir, overwrite=overwrite)
     if plan is not None:
         log.info("plan %s: %d stations", plan.name, len(plan))
 
-    recording: list[FlightRecorder] = []  # the recorder, once it exists
-    # what the first connection reads before the recorder exists (no file is written until
-    # the vehicle answers): recorded as soon as it does
-    early: list[tuple[Any, float]] = []
+    # Every message any read parses goes into this queue (from the reader thread, or from
+    # Link.open while it waits for the heartbeat); the main loop records them in order.
+    inbox: queue.Queue[Any] = queue.Queue()
 
     def observe(msg: Any, rx_time_utc_s: float) -> None:
-        if recording:
-            recording[0].record(msg, rx_time_utc_s)
-        else:
-            early.append((msg, rx_time_utc_s))
+        inbox.put((msg, rx_time_utc_s))
 
     def open_link(timeout_s: float) -> Link:
         return Link.open(
@@ -1039,6 +1211,9 @@ def monitor(
         first.close()
         raise
     recorder.set_vehicle(first.target_system, first.target_component)
+    requests = StreamRequests()
+    follower = MissionFollower(Path(plan_dir) if plan_dir is not None else None)
+    reader: LinkReader | None = None
     reason = StopReason.STOPPED
     last_update = 0.0
     landed_at: float | None = None
@@ -1050,13 +1225,40 @@ def monitor(
             last_update = now
             on_update(recorder.state())
 
+    def start(active: Link) -> LinkReader:
+        try:
+            requests.ask(active)
+        except LinkError as error:  # the reader will see the drop too
+            log.debug("asking for streams failed: %s", error)
+        return LinkReader(active, inbox)
+
+    def apply_mission(items: list[Any], same_as_plan: bool) -> None:
+        if same_as_plan:
+            if recorder.stations_from != "plan" and plan is not None:
+                recorder.replace_plan(plan, source="plan")
+            log.info("the vehicle holds the plan's mission (%d items)", len(items))
+            return
+        columns = station_columns(items)
+        stations = (
+            StationPlan(name="the vehicle's mission", trigger_distance_m=None, **columns)
+            if len(columns["lat_deg"])
+            else None
+        )
+        if plan is not None or recorder.mission_changes:
+            log.warning(
+                "the vehicle holds %s (%d items, %d photo stations): photos are now counted "
+                "against its stations",
+                "another mission than the plan's" if plan is not None else "a new mission",
+                len(items),
+                len(stations) if stations is not None else 0,
+            )
+        recorder.replace_plan(stations, source="vehicle")
+
     try:
         try:
-            for msg, rx_time_utc_s in early:
-                recorder.record(msg, rx_time_utc_s)
-            early.clear()
-            recording.append(recorder)
-            while True:
+            recording = True
+            reader = start(first)
+            while recording:
                 if stop.is_set():
                     reason = StopReason.STOPPED
                     break
@@ -1067,21 +1269,50 @@ def monitor(
                     if link is None:  # stopped while reconnecting
                         reason = StopReason.STOPPED
                         break
+                    reader = start(link)
                     continue
                 try:
-                    # the observer records every message read; what recv returns is already
-                    # recorded. Drain what is there before looking at the clock again.
-                    msg = link.recv(None, timeout_s=0.1, all_components=True)
-                    while msg is not None:
-                        msg = link.recv(None, timeout_s=0.0, all_components=True)
-                except LinkError as error:
-                    detail = str(error)
-                    log.warning("link lost: %s; reconnecting (the recording goes on)", detail)
-                    recorder.note_drop(detail)
-                    link.close()
-                    link = None
-                    update(force=True)
+                    item = inbox.get(timeout=0.1)
+                except queue.Empty:
+                    item = None
+                handled = 0
+                while item is not None:
+                    if isinstance(item, Dropped):
+                        log.warning("link lost: %s; reconnecting (the recording goes on)", item.detail)
+                        recorder.note_drop(item.detail)
+                        if reader is not None:
+                            reader.stop()
+                            reader = None
+                        link.close()
+                        link = None
+                        update(force=True)
+                        break
+                    msg, rx_time_utc_s = item
+                    recorder.record(msg, rx_time_utc_s)
+                    kind = msg.get_type()
+                    if kind == "COMMAND_ACK" and recorder.vehicle is not None:
+                        if msg.get_srcSystem() == recorder.vehicle[0] and getattr(
+                            msg, "target_system", 0
+                        ) in (0, link.source_system):
+                            requests.on_command_ack(msg)
+                    else:
+                        follower.feed(msg)
+                    handled += 1
+                    if handled >= 500:  # look at the clock now and then under a flood
+                        break
+                    try:
+                        item = inbox.get_nowait()
+                    except queue.Empty:
+                        item = None
+                if link is None:
                     continue
+                missing = requests.check(recorder.last_seen_s)
+                if missing is not None:
+                    recorder.missing_streams = missing
+                follower.tick(link, recorder.mission_changed_at_s)
+                result = follower.poll()
+                if result is not None:
+                    apply_mission(*result)
                 if stop_when_landed and recorder.flight_over:
                     if landed_at is None:
                         landed_at = time.monotonic()
@@ -1096,8 +1327,18 @@ def monitor(
             reason = StopReason.INTERRUPTED
             log.warning("interrupted: closing the recording")
     finally:
+        if reader is not None:
+            reader.stop()
         if link is not None:
             link.close()
+        # what was read but not yet recorded still goes into the files
+        while True:
+            try:
+                item = inbox.get_nowait()
+            except queue.Empty:
+                break
+            if not isinstance(item, Dropped) and not recorder.closed:
+                recorder.record(*item)
         state = recorder.close()
     if on_update is not None:
         on_update(state)

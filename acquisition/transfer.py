@@ -26,13 +26,14 @@ from __future__ import annotations
 
 import logging
 import math
+import re
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from enum import StrEnum
 from typing import Any, Protocol
 
-from planner.errors import MissionValidationError
+from planner.errors import InputError, MissionValidationError
 from planner.mission import (
     Autopilot,
     HomePosition,
@@ -275,6 +276,21 @@ class MissionTransferError(TransferError):
         self.mission_state = mission_state
 
 
+class MissionTooLargeError(MissionTransferError):
+    """The vehicle holds fewer items than the mission has (MAV_MISSION_NO_SPACE with its
+    capacity, "Only N items are supported"); nothing changed on the vehicle."""
+
+    def __init__(self, message: str, *, items: int, capacity: int | None) -> None:
+        super().__init__(message, mission_state=MissionState.UNCHANGED)
+        self.items = items
+        self.capacity = capacity
+
+
+class MissionInputError(InputError, MissionValidationError):
+    """The mission cannot be sent as it is (it fails validation, or it was planned for the
+    other autopilot): bad input, exit code 2; nothing was sent."""
+
+
 class MissionVerificationError(VerificationError):
     """The read-back differs from what was sent; ``result`` lists the differences."""
 
@@ -422,6 +438,12 @@ def _send_items(
                 # ArduPilot and PX4 say this about a duplicate item and carry on.
                 log.debug("MISSION_ACK invalid sequence: a duplicate crossed; carrying on")
                 continue
+            if code == _NO_SPACE and not sent:
+                capacity = _capacity_said(session, deadline_s=0.5)
+                if (capacity is not None and 0 < capacity < count) or (
+                    capacity is None and link.autopilot is Autopilot.PX4
+                ):
+                    raise _too_large(link.url, count, capacity, session)
             if code == _NO_SPACE and not sent and no_space_tries < no_space_retries:
                 no_space_tries += 1
                 note = (
@@ -462,6 +484,44 @@ def _send_items(
         last_seq = seq
         attempts = 0
         deadline = session.deadline()
+
+
+_CAPACITY_RE = re.compile(r"Only (\d+) items are supported", re.I)
+
+
+def _capacity_said(session: _Session, *, deadline_s: float) -> int | None:
+    """The capacity in the vehicle's "Only N items are supported" (ArduPilot), waiting up to
+    ``deadline_s`` for it when it has not come yet; None when it does not say."""
+
+    def said() -> int | None:
+        for text in reversed(session.status_texts):
+            found = _CAPACITY_RE.search(text)
+            if found:
+                return int(found.group(1))
+        return None
+
+    value = said()
+    if value is not None:
+        return value
+    session.recv(set(), time.monotonic() + deadline_s)  # collects STATUSTEXT on the way
+    return said()
+
+
+def _too_large(url: str, count: int, capacity: int | None, session: _Session) -> MissionTooLargeError:
+    if capacity is None:
+        size = f"the mission's {count} items do not fit this vehicle (MAV_MISSION_NO_SPACE)"
+    else:
+        size = (
+            f"the mission has {count} items (home included) and this vehicle holds at most {capacity}: "
+            f"{count - capacity} too many"
+        )
+    return MissionTooLargeError(
+        f"upload to {url} refused: {size}{session.vehicle_said()}. Split the survey into sorties that fit "
+        f"(plan part of the area per sortie, or fewer passes per mission) and upload them one after "
+        f"another. Nothing was sent: the vehicle's mission is unchanged.",
+        items=count,
+        capacity=capacity,
+    )
 
 
 def _target(session: _Session) -> tuple[int, int, int]:
@@ -569,6 +629,7 @@ def home_item(home: HomePosition) -> MissionItem:
 
 
 _FENCE_COMMANDS = frozenset({5001, 5002, 5003, 5004})
+_AUTOPILOT_NAME = {Autopilot.ARDUPILOT: "ArduPilot", Autopilot.PX4: "PX4"}
 
 
 def _validate(mission: Mission, mission_type: MissionType, max_alt_rel_home_m: float | None) -> None:
@@ -585,13 +646,11 @@ def _validate(mission: Mission, mission_type: MissionType, max_alt_rel_home_m: f
             if not (-90 <= item.lat_deg <= 90 and -180 <= item.lon_deg <= 180):
                 problems.append(f"item {index}: latitude/longitude out of range")
         if problems:
-            raise MissionValidationError(
+            raise MissionInputError(
                 "the fence failed validation and will not be sent:\n  " + "\n  ".join(problems)
             )
     except MissionValidationError as error:
-        raise MissionValidationError(
-            f"{error}\nNothing was sent: the vehicle's mission is unchanged."
-        ) from error
+        raise MissionInputError(f"{error}\nNothing was sent: the vehicle's mission is unchanged.") from error
 
 
 # AP_Mission::sanity_check_params: the params (1-4) that may be NaN; any other NaN is refused
@@ -616,7 +675,7 @@ def _check_ardupilot_nan(items: Sequence[MissionItem]) -> None:
                     f"ArduPilot refuses for this command; give a number"
                 )
     if problems:
-        raise MissionValidationError(
+        raise MissionInputError(
             "the mission cannot go to ArduPilot as it is:\n  "
             + "\n  ".join(problems[:20])
             + "\nNothing was sent: the vehicle's mission is unchanged."
@@ -634,6 +693,7 @@ def upload_mission(
     mission_type: MissionType = MissionType.MISSION,
     no_space_wait_s: float = 2.0,
     no_space_retries: int = 3,
+    allow_other_autopilot: bool = False,
 ) -> UploadResult:
     """Validate ``mission``, upload it, read it back and verify it item by item.
 
@@ -642,7 +702,11 @@ def upload_mission(
     vehicle's altitude limit above home (m), checked before anything is sent.
     ``no_space_wait_s``/``no_space_retries``: the pause and the number of new attempts after a
     MAV_MISSION_NO_SPACE refusal received before any item was requested (ArduPilot just after
-    boot). With ``mission_type`` FENCE, ``mission.items`` are the fence items.
+    boot: "Only 0 items are supported"); a refusal that names a capacity smaller than the
+    mission ("Only 650 items are supported"), or PX4's NO_SPACE, raises
+    :class:`MissionTooLargeError` at once, with the excess. A mission file that says it was
+    planned for the other autopilot is refused (:class:`MissionValidationError`) unless
+    ``allow_other_autopilot``. With ``mission_type`` FENCE, ``mission.items`` are the fence items.
 
     Returns the :class:`UploadResult` of a verified upload. Raises
     :class:`MissionValidationError` (nothing sent), :class:`MissionTransferError` (the transfer
@@ -651,19 +715,28 @@ def upload_mission(
     """
     _validate(mission, mission_type, max_alt_rel_home_m)
     autopilot = link.autopilot
-    if autopilot is Autopilot.ARDUPILOT and mission_type is MissionType.MISSION:
-        _check_ardupilot_nan(mission.items)
     if mission_type is MissionType.MISSION and mission.autopilot is not autopilot:
+        if mission.metadata.get("autopilot_from_file") and not allow_other_autopilot:
+            raise MissionInputError(
+                f"the mission was planned for {_AUTOPILOT_NAME[mission.autopilot]} but the vehicle on "
+                f"{link.url} is {_AUTOPILOT_NAME[autopilot]}: their mission commands differ (gimbal, "
+                f"camera, empty parameters), so it would not fly as planned. Plan it again with "
+                f'[vehicle] autopilot = "{autopilot.value}" in the mission spec (or pass '
+                f"--allow-other-autopilot to send it as it is). Nothing was sent: the vehicle's mission "
+                f"is unchanged."
+            )
         log.warning(
             "the mission was planned for %s but the vehicle is %s: uploading it as %s expects",
             mission.autopilot.value,
             autopilot.value,
             autopilot.value,
         )
+    if autopilot is Autopilot.ARDUPILOT and mission_type is MissionType.MISSION:
+        _check_ardupilot_nan(mission.items)
     with_home = _has_home_item(autopilot, mission_type)
     wire_items = ([home_item(mission.home)] if with_home else []) + list(mission.items)
     if len(wire_items) > 65535:
-        raise MissionValidationError(
+        raise MissionInputError(
             f"{len(wire_items)} items do not fit the mission protocol (at most 65535); split "
             f"the mission into sorties. Nothing was sent: the vehicle's mission is unchanged."
         )
@@ -839,6 +912,17 @@ def request_home_position(
     return None
 
 
+def first_waypoint_distance_m(items: Sequence[MissionItem], home: HomePosition) -> float | None:
+    """Geodesic distance (m, WGS84) from ``home`` to the first item with a position (a global
+    frame and a latitude or longitude that is not 0); None when no item has one."""
+    from planner.geo import geodesic_distance_m
+
+    for item in items:
+        if is_global_frame(item.frame) and (item.lat_deg != 0.0 or item.lon_deg != 0.0):
+            return geodesic_distance_m(home.lat_deg, home.lon_deg, item.lat_deg, item.lon_deg)
+    return None
+
+
 def downloaded_mission(
     items: Sequence[MissionItem],
     autopilot: Autopilot,
@@ -929,6 +1013,11 @@ def _fmt(value: float | None, n: int, global_frame: bool) -> str:
 
 
 def _same32(a: float | None, b: float | None) -> bool:
+    """Equal as float32 storage makes them. A float parameter travels and is stored as a
+    float32, so what comes back is exactly the float32 nearest to what was sent: the tolerance
+    is that rounding (half a unit in the 24th significant bit, 2**-24 relative), and anything
+    else is a difference. A trigger distance of 11.06 m read back as 11 m (truncated to whole
+    metres) is 0.5 % off: different."""
     if a is None or b is None:
         return a is None and b is None
     if math.isnan(a) or math.isnan(b):

@@ -187,7 +187,7 @@ def run(items: int, autopilot: Autopilot, telemetry: bool) -> dict[str, Any]:
     master, slave = os.openpty()
     tty.setraw(slave)
     device = os.ttyname(slave)
-    with SimulatedVehicle(autopilot=autopilot, boot_delay_s=0.0) as vehicle:
+    with SimulatedVehicle(autopilot=autopilot, boot_delay_s=0.0, streams_on_request=False) as vehicle:
         host, port = vehicle.url_for_client.removeprefix("tcp://").split(":")
         peer = socket.create_connection((host, int(port)))
         peer.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)

@@ -8,6 +8,16 @@ MISSION_CURRENT 1 Hz and on change, MISSION_ITEM_REACHED, MOUNT_STATUS (ArduPilo
 GIMBAL_DEVICE_ATTITUDE_STATUS (PX4) 1 Hz once a gimbal was commanded, and at every photo
 CAMERA_FEEDBACK (ArduPilot) or CAMERA_TRIGGER + CAMERA_IMAGE_CAPTURED (PX4).
 
+Telemetry rates (``streams_on_request``): a real ArduPilot sends nothing but HEARTBEAT (and
+the messages it sends on events: STATUSTEXT, MISSION_CURRENT on change, MISSION_ITEM_REACHED,
+CAMERA_FEEDBACK) until a ground station asks, because its SRx_ stream rates default to 0 on
+its serial ports. With ``streams_on_request`` the periodic streams start at 0 and follow
+MAV_CMD_SET_MESSAGE_INTERVAL (:meth:`FlightSimulator.set_message_interval`) and the legacy
+REQUEST_DATA_STREAM (:meth:`FlightSimulator.request_data_stream`, grouped as ArduCopter's
+GCS_Mavlink.cpp groups them: :data:`DATA_STREAM_GROUPS`); without it they run at the rates
+above from boot (as PX4 does). EXTENDED_SYS_STATE (landed state) is sent only when asked.
+The rates are the vehicle's, not one per ground station (ArduPilot keeps them per port).
+
 The motion is exact and piecewise linear: every leg is a straight line flown at the commanded
 horizontal speed, its vertical part limited by the climb or descent rate; arrivals, holds and
 photos happen at their exact times whatever the step size, so a flight is a function of the
@@ -40,6 +50,7 @@ from __future__ import annotations
 
 import math
 import random
+import zlib
 from dataclasses import dataclass, field
 from enum import Enum
 
@@ -161,9 +172,36 @@ class _SmoothNoise:
 
 @dataclass
 class _Stream:
+    """One periodic message. ``period_s`` 0: not sent (ArduPilot's rate 0)."""
+
     name: str
-    period_s: float
+    default_period_s: float
+    period_s: float = 0.0
     next_s: float = 0.0
+
+
+#: MAVLink message id -> the stream that sends it (what SET_MESSAGE_INTERVAL can change).
+STREAM_OF_MESSAGE_ID = {
+    0: "HEARTBEAT",
+    2: "SYSTEM_TIME",
+    33: "GLOBAL_POSITION_INT",
+    30: "ATTITUDE",
+    24: "GPS_RAW_INT",
+    42: "MISSION_CURRENT",
+    245: "EXTENDED_SYS_STATE",
+    158: "GIMBAL",  # MOUNT_STATUS (ArduPilot)
+    285: "GIMBAL",  # GIMBAL_DEVICE_ATTITUDE_STATUS (PX4)
+}
+#: REQUEST_DATA_STREAM's MAV_DATA_STREAM groups, as ArduCopter's GCS_Mavlink.cpp files the
+#: messages this simulator sends: EXTENDED_STATUS (2) GPS_RAW_INT and MISSION_CURRENT;
+#: POSITION (6) GLOBAL_POSITION_INT; EXTRA1 (10) ATTITUDE; EXTRA3 (12) SYSTEM_TIME and the
+#: gimbal's attitude. MAV_DATA_STREAM_ALL (0) is every group.
+DATA_STREAM_GROUPS: dict[int, tuple[str, ...]] = {
+    2: ("GPS_RAW_INT", "MISSION_CURRENT"),
+    6: ("GLOBAL_POSITION_INT",),
+    10: ("ATTITUDE",),
+    12: ("SYSTEM_TIME", "GIMBAL"),
+}
 
 
 @dataclass
@@ -208,6 +246,7 @@ class FlightSimulator:
         config: FlightConfig | None = None,
         gps_fix_s: float = 1.0,
         boot_utc_s: float = 1.7e9,
+        streams_on_request: bool = False,
     ) -> None:
         self.autopilot = Autopilot(autopilot)
         self.vehicle_type = VehicleType(vehicle_type)
@@ -233,6 +272,7 @@ class FlightSimulator:
         self.has_flown = False
         self.has_landed_after_flight = False
         self.mission = _MissionState()
+        self.mission_id = 0
         self.camera = _Camera()
         self.gimbal = _Gimbal()
         self.gimbal_commanded = False
@@ -256,7 +296,58 @@ class FlightSimulator:
             _Stream("GPS_RAW_INT", 0.2),
             _Stream("MISSION_CURRENT", 1.0),
             _Stream("GIMBAL", 1.0),
+            _Stream("EXTENDED_SYS_STATE", 1.0),
         ]
+        # ArduPilot sends only HEARTBEAT until a ground station asks (its SRx_ rates are 0);
+        # EXTENDED_SYS_STATE is in none of its stream groups: only SET_MESSAGE_INTERVAL starts it.
+        for stream in self._streams:
+            asked_only = streams_on_request or stream.name == "EXTENDED_SYS_STATE"
+            stream.period_s = 0.0 if asked_only and stream.name != "HEARTBEAT" else stream.default_period_s
+        #: True once a ground station asked for a telemetry stream.
+        self.telemetry_requested = False
+
+    # --- telemetry rates ---------------------------------------------------------------------
+
+    def _stream(self, name: str) -> _Stream:
+        return next(s for s in self._streams if s.name == name)
+
+    def _set_period(self, name: str, period_s: float) -> None:
+        stream = self._stream(name)
+        if period_s > 0 and stream.period_s <= 0:
+            stream.next_s = self.time_s  # the first one at once
+        elif period_s > 0:
+            stream.next_s = min(stream.next_s, self.time_s + period_s)
+        stream.period_s = max(period_s, 0.0)
+        if period_s > 0 and name != "HEARTBEAT":
+            self.telemetry_requested = True
+
+    def set_message_interval(self, message_id: int, interval_us: float) -> bool:
+        """MAV_CMD_SET_MESSAGE_INTERVAL: ``interval_us`` > 0 that period (simulated
+        microseconds), 0 the default rate, -1 stop. False for a message this vehicle cannot send."""
+        name = STREAM_OF_MESSAGE_ID.get(int(message_id))
+        if name is None or not math.isfinite(interval_us) or interval_us < -1:
+            return False
+        if interval_us == 0:
+            period = self._stream(name).default_period_s
+        elif interval_us < 0:
+            period = 0.0
+        else:
+            period = max(interval_us / 1e6, 0.001)
+        self._set_period(name, period)
+        return True
+
+    def request_data_stream(self, stream_id: int, rate_hz: float, start: bool) -> None:
+        """REQUEST_DATA_STREAM (the legacy way): every message of the group at ``rate_hz``
+        (ArduPilot stores it as its SRx_ rate), or off when ``start`` is 0 or the rate 0."""
+        groups = DATA_STREAM_GROUPS.values() if stream_id == 0 else [DATA_STREAM_GROUPS.get(stream_id, ())]
+        period = 1.0 / rate_hz if start and rate_hz > 0 else 0.0
+        for group in groups:
+            for name in group:
+                self._set_period(name, period)
+
+    def stream_rates_hz(self) -> dict[str, float]:
+        """Every stream's rate now (Hz of simulated time; 0 = not sent)."""
+        return {s.name: (1.0 / s.period_s if s.period_s > 0 else 0.0) for s in self._streams}
 
     # --- clocks and identity ------------------------------------------------------------------
 
@@ -273,6 +364,31 @@ class FlightSimulator:
         return self.pos[2] > 0.05
 
     @property
+    def landed_state(self) -> int:
+        """MAV_LANDED_STATE: 1 on the ground, 2 in the air, 3 taking off, 4 landing."""
+        if not self.airborne:
+            return 1
+        vz = self.vel[2]
+        if vz > 0.1 and self.pos[2] < 5.0:
+            return 3
+        if vz < -0.1 and self._after_legs == "landed":
+            return 4
+        return 2
+
+    def move_home(self, home: HomePosition) -> None:
+        """Put the vehicle (on the ground, never flown) at ``home``: the frame is rebuilt there."""
+        if self.has_flown or self.armed:
+            raise InputError("the vehicle has flown or is armed; its home cannot move now")
+        self.home = home
+        crs = CRS.from_proj4(
+            f"+proj=aeqd +lat_0={home.lat_deg!r} +lon_0={home.lon_deg!r} +datum=WGS84 +units=m +no_defs"
+        )
+        self.frame = LocalFrame.from_crs(crs)
+        self._lonlat_from_xy = Transformer.from_crs(crs, WGS84, always_xy=True)
+        self.pos = [0.0, 0.0, 0.0]
+        self.camera.last_xy = None
+
+    @property
     def _first_index(self) -> int:
         return 1 if self.autopilot is Autopilot.ARDUPILOT else 0
 
@@ -280,6 +396,11 @@ class FlightSimulator:
 
     def set_mission(self, items: list[MissionItem]) -> None:
         """The stored mission as read back (ArduPilot: home at 0)."""
+        if list(items) != self.mission.items:
+            # MISSION_CURRENT.mission_id: an id that changes with the mission (PX4 sends a
+            # CRC32 of the items; 0 is "no mission")
+            body = items[self._first_index :]
+            self.mission_id = zlib.crc32(repr(body).encode()) or 1 if body else 0
         self.mission.items = list(items)
         if self.mission.current >= len(items):
             self.mission.current = max(0, len(items) - 1)
@@ -868,6 +989,8 @@ class FlightSimulator:
             return M.MAVLink_system_time_message(unix_us, boot_ms)
         if name == "MISSION_CURRENT":
             return self._mission_current_message()
+        if name == "EXTENDED_SYS_STATE":
+            return M.MAVLink_extended_sys_state_message(0, self.landed_state)
         if name == "GIMBAL":
             if not self.gimbal_commanded:
                 return None
@@ -934,7 +1057,7 @@ class FlightSimulator:
         self._out_timed = out
         try:
             while True:
-                nxt = min(s.next_s for s in self._streams)
+                nxt = min((s.next_s for s in self._streams if s.period_s > 0), default=math.inf)
                 target = min(end, nxt)
                 if target > self.time_s:
                     self._advance(target - self.time_s)
@@ -944,7 +1067,7 @@ class FlightSimulator:
                 if nxt > end + 1e-12:
                     break
                 for stream in self._streams:
-                    if stream.next_s <= self.time_s + 1e-9:
+                    if stream.period_s > 0 and stream.next_s <= self.time_s + 1e-9:
                         msg = self._emit(stream.name)
                         if msg is not None:
                             out.append((self.time_s, msg))

@@ -37,7 +37,13 @@ line. What it does, and which real behaviour each part copies:
   ``link_baud`` adds a serial radio's speed (8N1, each way, shared with the telemetry).
 - Commands: ARM_DISARM (400), DO_SET_MODE (176) and SET_MODE, MISSION_START (300),
   DO_SET_MISSION_CURRENT (224), NAV_RETURN_TO_LAUNCH (20), REQUEST_MESSAGE (512) for
-  AUTOPILOT_VERSION (148) or HOME_POSITION (242), answered with COMMAND_ACK.
+  AUTOPILOT_VERSION (148) or HOME_POSITION (242), SET_MESSAGE_INTERVAL (511; UNSUPPORTED for
+  a message it cannot send), answered with COMMAND_ACK; REQUEST_DATA_STREAM (no answer, as
+  ArduPilot).
+- Telemetry: as ArduPilot on a serial port, only HEARTBEAT and event messages until a ground
+  station asks for streams (``streams_on_request``, the ArduPilot flavour's default).
+- Optionally the camera's card (:class:`.camera.FrameCard`): a small JPEG per photo, stamped
+  by a camera clock that is off by a set offset, with frames dropped or added on request.
 - Every ground station that connects gets a HEARTBEAT and the banner at once.
 - Optionally a .tlog of what it sends (before link faults): per packet an 8-byte big-endian
   microsecond UTC time stamp (simulated time) then the raw packet, as MAVProxy and QGC write.
@@ -75,6 +81,7 @@ from planner.mission import Autopilot, HomePosition, MissionItem, VehicleType
 
 from ..errors import LinkError
 from ..mavlink_items import to_mission_item_int
+from .camera import FrameCard
 from .faults import FaultConfig, FaultStats, FaultyPipe, Refusal
 from .flight import FlightConfig, FlightSimulator
 from .storage import (
@@ -177,7 +184,13 @@ class SimulatedVehicle:
     mission capacity (ArduPilot 724 including home, PX4 2000); ``flight`` the flight model's
     settings; ``link_baud`` makes the link a serial radio of that many baud (8N1, each way,
     shared with the telemetry; None: as fast as the socket); ``system_id`` /
-    ``component_id`` its MAVLink identity.
+    ``component_id`` its MAVLink identity; ``streams_on_request``: periodic telemetry only
+    once a ground station asks for it (SET_MESSAGE_INTERVAL or REQUEST_DATA_STREAM), as
+    ArduPilot on a serial port (default: True for ArduPilot, False for PX4; see
+    :mod:`.flight`); ``follow_mission_home``: before its first flight the vehicle moves to
+    the home of the mission it is given (ArduPilot: the uploaded item 0; PX4: the first
+    positional item, on the ground at the current elevation), so that a simulated flight does
+    not start kilometres away; ``frames``: the camera card the photos are written to.
     """
 
     def __init__(
@@ -199,6 +212,9 @@ class SimulatedVehicle:
         link_baud: int | None = None,
         system_id: int = 1,
         component_id: int = 1,
+        streams_on_request: bool | None = None,
+        follow_mission_home: bool = False,
+        frames: FrameCard | None = None,
     ) -> None:
         if not (speedup > 0 and math.isfinite(speedup)):
             raise InputError(f"speedup is {speedup}; give a positive number (1 = real time)")
@@ -247,7 +263,12 @@ class SimulatedVehicle:
             config=flight or FlightConfig(seed=self.faults.seed),
             gps_fix_s=gps_fix_s,
             boot_utc_s=time.time(),
+            streams_on_request=ardupilot if streams_on_request is None else streams_on_request,
         )
+        self.streams_on_request = ardupilot if streams_on_request is None else streams_on_request
+        self.follow_mission_home = follow_mission_home
+        self.frames = frames
+        self._uploaded_home: HomePosition | None = None
         self._transport: Transport | None = None
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()
@@ -257,6 +278,8 @@ class SimulatedVehicle:
         self.received_counts: dict[str, int] = {}
         self.sent_counts: dict[str, int] = {}
         self._auto_start = False
+        self._auto_start_waits = False
+        self._said_waiting = False
 
     # --- lifecycle ---------------------------------------------------------------------------
 
@@ -372,11 +395,14 @@ class SimulatedVehicle:
             stored[seq] = wire_item_from_message(to_mission_item_int(item, seq, 1, 1, 0))
             self._mission_changed(MISSION_TYPE_MISSION)
 
-    def auto_start(self) -> None:
-        """Arm and start the mission (AUTO) as soon as the GPS has a fix, once; as a ground
-        station would with ARM_DISARM and MISSION_START."""
+    def auto_start(self, *, wait_for_telemetry: bool = False) -> None:
+        """Arm and start the mission (AUTO) as soon as the GPS has a fix and a mission is
+        stored, once; as a ground station would with ARM_DISARM and MISSION_START. With
+        ``wait_for_telemetry`` it also waits until a ground station has asked for telemetry
+        (a monitor does at once): a crew starts the flight once the flight is being watched."""
         with self._lock:
             self._auto_start = True
+            self._auto_start_waits = wait_for_telemetry
 
     def wait_landed(self, timeout_s: float) -> bool:
         """Wait (wall seconds) until the vehicle has flown and landed; True if it has."""
@@ -434,14 +460,32 @@ class SimulatedVehicle:
             with self._lock:
                 # --auto-start waits for a GPS fix and for a mission (preloaded or uploaded).
                 if self._auto_start and self.flight.gps_has_fix and self.flight.has_mission:
-                    self._auto_start = False
-                    self._start_by_itself()
+                    if self._auto_start_waits and not self.flight.telemetry_requested:
+                        if not self._said_waiting:
+                            self._said_waiting = True
+                            self._send_text(6, "Auto-start: waiting for a GCS to ask telemetry")
+                            log.info(
+                                "simulated vehicle: mission stored; waiting for a ground station to "
+                                "ask for telemetry (sfap monitor) before starting"
+                            )
+                    else:
+                        self._auto_start = False
+                        self._start_by_itself()
                 for when_s, msg in self.flight.drain_events():
                     self._send(msg, when_s)
                 for when_s, msg in self.flight.step_timed(dt_wall * self.speedup):
                     self._send(msg, when_s)
+                self._write_frames()
                 self._protocol_timers(now)
             self._flush(time.monotonic())
+
+    def _write_frames(self) -> None:
+        card = self.frames
+        if card is None:
+            return
+        shots = self.flight.shots
+        while card.photos < len(shots):
+            card.photo(shots[card.photos].utc_s)
 
     def _poll_timeout_s(self, now: float) -> float:
         """How long the loop may wait for bytes: at most :data:`_POLL_S` (the flight's step),
@@ -579,13 +623,10 @@ class SimulatedVehicle:
             self._ack(msg, MAV_MISSION_NO_SPACE, mission_type)
             self._send_text(4, "Only 0 items are supported")
             return
-        if self.faults.refuse == Refusal.NO_SPACE and msg.count > 0:
+        if (self.faults.refuse == Refusal.NO_SPACE and msg.count > 0) or msg.count > self.max_items:
             self._ack(msg, MAV_MISSION_NO_SPACE, mission_type)
-            self._send_text(4, f"Only {self.max_items} items are supported")
-            return
-        if msg.count > self.max_items:
-            self._ack(msg, MAV_MISSION_NO_SPACE, mission_type)
-            self._send_text(4, f"Only {self.max_items} items are supported")
+            if ardupilot:  # PX4 says nothing more than its NO_SPACE
+                self._send_text(4, f"Only {self.max_items} items are supported")
             return
         self._completed = None
         if ardupilot:
@@ -642,6 +683,10 @@ class SimulatedVehicle:
             result: WireItem | int = MAV_MISSION_INVALID
         elif ardupilot and mission_type == MISSION_TYPE_MISSION and msg.seq == 0:
             result = NO_HOME  # home: ArduPilot keeps its own
+            if wire.frame in (0, 5) and (wire.x != 0 or wire.y != 0):  # MAV_FRAME_GLOBAL(_INT)
+                self._uploaded_home = HomePosition(
+                    lat_deg=wire.x / 1e7, lon_deg=wire.y / 1e7, alt_amsl_m=float(wire.z)
+                )
         else:
             result = self._store(wire, mission_type)
         if isinstance(result, int):
@@ -667,7 +712,37 @@ class SimulatedVehicle:
             return
         self._request(up)
 
+    def _follow_home(self, up: _Upload) -> None:
+        """``follow_mission_home``: move to the uploaded mission's home before the first flight."""
+        if not self.follow_mission_home or up.mission_type != MISSION_TYPE_MISSION:
+            return
+        flight = self.flight
+        if flight.has_flown or flight.armed:
+            return
+        home = self._uploaded_home
+        if home is None and self.autopilot is Autopilot.PX4:
+            for wire in up.items:
+                if wire.frame in (0, 3, 5, 6, 10, 11) and (wire.x != 0 or wire.y != 0):
+                    home = HomePosition(
+                        lat_deg=wire.x / 1e7, lon_deg=wire.y / 1e7, alt_amsl_m=flight.home.alt_amsl_m
+                    )
+                    break
+        self._uploaded_home = None
+        if home is None or (home.lat_deg, home.lon_deg) == (flight.home.lat_deg, flight.home.lon_deg):
+            return
+        flight.move_home(home)
+        self.home = home
+        self._send_text(6, "sim: moved to the mission's home")
+        log.info(
+            "simulated vehicle: moved to the uploaded mission's home %.7f, %.7f, %.1f m AMSL",
+            home.lat_deg,
+            home.lon_deg,
+            home.alt_amsl_m,
+        )
+
     def _finish(self, msg: Any, up: _Upload, result: int) -> None:
+        if result == MAV_MISSION_ACCEPTED:
+            self._follow_home(up)
         self._completed = _Completed(up.mission_type, up.count, up.sysid, up.compid, result, time.monotonic())
         self._mission_changed(up.mission_type)
         self._ack(msg, result, up.mission_type)
@@ -846,7 +921,10 @@ class SimulatedVehicle:
                 self._send(home)
                 return accepted
             return unsupported
-        if command in (511, 2504):  # SET_MESSAGE_INTERVAL, REQUEST_CAMERA_INFORMATION
+        if command == 511:  # MAV_CMD_SET_MESSAGE_INTERVAL (param1 message id, param2 interval us)
+            ok = flight.set_message_interval(int(params[0]), float(params[1]))
+            return accepted if ok else unsupported
+        if command == 2504:  # REQUEST_CAMERA_INFORMATION
             return accepted
         return unsupported
 
@@ -867,7 +945,10 @@ class SimulatedVehicle:
         self.flight.set_mode(int(msg.base_mode), *self.flight.split_custom_mode(msg.custom_mode))
 
     def _on_request_data_stream(self, msg: Any) -> None:
-        return
+        # No answer, as ArduPilot: the streams start (or stop), that is all.
+        self.flight.request_data_stream(
+            int(msg.req_stream_id), float(msg.req_message_rate), bool(msg.start_stop)
+        )
 
 
 def serve(
@@ -876,16 +957,24 @@ def serve(
     duration_s: float | None = None,
     until_landed: bool = False,
     poll_s: float = 0.05,
+    linger_s: float = 0.0,
 ) -> str:
     """Keep a started ``vehicle`` running; return why it stopped: ``"duration"`` after
-    ``duration_s`` wall seconds, ``"landed"`` once it has flown and landed (``until_landed``).
+    ``duration_s`` wall seconds, ``"landed"`` once it has flown and landed (``until_landed``;
+    ``linger_s`` wall seconds later when a ground station asked for telemetry, so that it sees
+    the landing and the disarm and can still talk to the vehicle).
     Without either it runs until KeyboardInterrupt (Ctrl-C), which propagates."""
     deadline = None if duration_s is None else time.monotonic() + duration_s
+    landed_at: float | None = None
     while True:
         if vehicle._error is not None:
             raise LinkError(f"the simulated vehicle stopped: {vehicle._error}")
-        if until_landed and vehicle.wait_landed(0.0):
-            return "landed"
+        if until_landed and landed_at is None and vehicle.wait_landed(0.0):
+            landed_at = time.monotonic()
+        if landed_at is not None:
+            watched = vehicle.flight.telemetry_requested  # a ground station may still be reading
+            if not watched or time.monotonic() - landed_at >= linger_s:
+                return "landed"
         if deadline is not None and time.monotonic() >= deadline:
             return "duration"
         time.sleep(poll_s)

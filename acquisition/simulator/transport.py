@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from urllib.parse import urlsplit
 
 from ..errors import LinkError
+from ..link import LinkInputError
 
 log = logging.getLogger(__name__)
 
@@ -39,18 +40,18 @@ def parse_listen_url(url: str) -> ListenAddress:
     if scheme == "tcp":
         scheme = "tcpin"
     if scheme not in ("tcpin", "udpin", "udpout"):
-        raise LinkError(
+        raise LinkInputError(
             f"the simulator cannot listen on {url!r}; use tcpin://HOST:PORT, "
             f"udpin://HOST:PORT or udpout://HOST:PORT (e.g. tcpin://127.0.0.1:5760)"
         )
     try:
         port = parts.port
     except ValueError as error:
-        raise LinkError(f"bad port in {url!r}: {error}; give a port 0-65535") from error
+        raise LinkInputError(f"bad port in {url!r}: {error}; give a port 0-65535") from error
     if port is None or not parts.hostname:
-        raise LinkError(f"{url!r} needs a host and a port, e.g. {scheme}://127.0.0.1:5760")
+        raise LinkInputError(f"{url!r} needs a host and a port, e.g. {scheme}://127.0.0.1:5760")
     if scheme == "udpout" and port == 0:
-        raise LinkError(f"{url!r}: udpout needs the ground station's real port, not 0")
+        raise LinkInputError(f"{url!r}: udpout needs the ground station's real port, not 0")
     return ListenAddress(scheme, parts.hostname, port)
 
 

@@ -32,6 +32,10 @@ def status_line(state: MonitorState) -> str:
         beat,
         f"reconnects {state.reconnects}",
     ]
+    if state.joined_late:
+        parts.append(f"joined late ({state.photos_before_join} before)")
+    if state.missing_streams:
+        parts.append("NO " + ",".join(state.missing_streams))
     if not state.connected:
         parts.append("LINK LOST, reconnecting")
     elif state.flight_over:
@@ -153,10 +157,13 @@ def command(
 ) -> None:
     """Record every camera event and the whole MAVLink traffic of the link (every system, as a
     ground station logs it) to a .tlog and a trigger CSV, showing live on stderr: photos
-    taken / planned stations, stations missed so far, mission item, link quality (percent of
-    messages received, from the MAVLink sequence numbers of every system on the link), age of
-    the last heartbeat, reconnections. A dropped link is reconnected and the recording goes
-    on. Ends when the vehicle lands and disarms, or on Ctrl-C, with the files complete.
+    taken (from the vehicle's image index) / planned stations, stations missed so far, mission
+    item, link quality (percent of messages received, from the MAVLink sequence numbers of
+    every system on the link), age of the last heartbeat, reconnections. It asks the vehicle
+    for position, attitude, clock and mission progress (ArduPilot sends none until asked) and
+    warns, naming them, when they do not come; it follows the mission the vehicle holds (a
+    re-fly uploaded in the field). A dropped link is reconnected and the recording goes on.
+    Ends when the vehicle lands and disarms, or on Ctrl-C, with the files complete.
 
     Example: sfap monitor --connect tcp://127.0.0.1:5760 --plan out/gully -o flight/
     """
@@ -206,6 +213,24 @@ def _present(result: MonitorResult, as_json: bool) -> None:
     click.echo(f"  summary        {result.summary_path}")
     planned = f" of {state.photos_planned} planned" if state.photos_planned else ""
     click.echo(f"photos: {state.photos_taken}{planned}; extra photos: {state.extra_photos}")
+    if state.joined_late:
+        click.echo(
+            f"joined late: the vehicle had taken {state.photos_before_join} photos before the monitor "
+            f"started; they are counted (from the vehicle's image index) but have no event in this "
+            f"recording: geotag those frames from the vehicle's own log (DataFlash .bin or .ulg)"
+        )
+    if state.photos_unseen:
+        click.echo(
+            f"camera events lost on the link: {state.photos_unseen} (the image index skipped them; "
+            f"the photos were taken, and stations they took may be listed as missed)"
+        )
+    if state.mission_changes:
+        source = "the vehicle's mission" if state.stations_from == "vehicle" else "the plan"
+        click.echo(
+            f"the vehicle's mission changed {state.mission_changes} time(s); stations counted from {source}"
+        )
+    if state.missing_streams:
+        click.echo(f"never received although asked for: {', '.join(state.missing_streams)}")
     if state.photos_planned:
         missed = state.missed_stations
         shown = ", ".join(str(i) for i in missed[:20]) + (" ..." if len(missed) > 20 else "")

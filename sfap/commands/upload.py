@@ -17,6 +17,7 @@ from acquisition.link import SIGNING_KEY_ENV, Link, load_signing_key
 from acquisition.transfer import (
     DEFAULT_RETRIES,
     DEFAULT_TIMEOUT_S,
+    MissionInputError,
     MissionVerificationError,
     TransferPhase,
     upload_mission,
@@ -110,7 +111,8 @@ def open_link(
         )
     except LinkError as error:
         if nothing_sent_note:
-            raise LinkError(f"{error}. {nothing_sent_note}") from error
+            # the same kind of error (a bad URL or key file stays bad usage), with the note
+            raise type(error)(f"{error}. {nothing_sent_note}") from error
         raise
 
 
@@ -160,6 +162,19 @@ def progress_bars(enabled: bool = True) -> Iterator[ProgressBars]:
     help="The vehicle's altitude limit in metres above home; higher items are refused before "
     "anything is sent. Default: no limit.",
 )
+@click.option(
+    "--max-home-distance-m",
+    type=click.FloatRange(min=0.0),
+    default=1000.0,
+    show_default=True,
+    help="Warn when the first waypoint is farther than this from the vehicle's home (metres): "
+    "the vehicle is not where the survey is, or the mission is another site's.",
+)
+@click.option(
+    "--allow-other-autopilot",
+    is_flag=True,
+    help="Send a mission planned for the other autopilot (ArduPilot/PX4) as it is (default: refuse).",
+)
 @json_option
 def command(
     mission_file: Path,
@@ -170,13 +185,17 @@ def command(
     retries: int,
     heartbeat_timeout_s: float,
     max_alt_m: float | None,
+    max_home_distance_m: float,
+    allow_other_autopilot: bool,
     as_json: bool,
 ) -> None:
     """Upload MISSION_FILE (.plan or .waypoints) to a vehicle, read it back and verify it.
 
     Exits 0 only when every item read back matches what was sent (latitude and longitude to
     the degE7 unit, parameters to float32); otherwise it lists the items that differ, says what
-    the vehicle now holds, and exits 1.
+    the vehicle now holds, and exits 1. A mission larger than the vehicle holds is refused at
+    once with the excess (exit 1); a mission that fails validation, or was planned for the other
+    autopilot, is not sent (exit 2). Warns when the first waypoint is far from the vehicle's home.
 
     Example: sfap upload out/gully/mission.plan --connect serial:///dev/ttyUSB0:57600
     """
@@ -190,7 +209,7 @@ def command(
     try:
         validate_mission(mission, max_alt_rel_home_m=max_alt_m)
     except MissionValidationError as error:
-        raise MissionValidationError(f"{error}\n{nothing_sent}") from error
+        raise MissionInputError(f"{error}\n{nothing_sent}") from error
     with (
         open_link(
             url,
@@ -201,6 +220,7 @@ def command(
         ) as link,
         progress_bars() as bars,
     ):
+        far = _far_from_home(link, mission, max_home_distance_m)
         try:
             result = upload_mission(
                 link,
@@ -209,6 +229,7 @@ def command(
                 timeout_s=timeout_s,
                 retries=retries,
                 max_alt_rel_home_m=max_alt_m,
+                allow_other_autopilot=allow_other_autopilot,
             )
         except MissionVerificationError as error:
             bars.close()
@@ -216,7 +237,7 @@ def command(
                 echo_json(error.result.to_dict())
             raise
     if as_json:
-        echo_json(result.to_dict())
+        echo_json({**result.to_dict(), "first_waypoint_from_home_m": far})
         return
     rows = [
         ("file", str(mission_file)),
@@ -231,3 +252,28 @@ def command(
     ]
     rows += [("note", note) for note in result.notes]
     echo_table(rows, title="Mission uploaded and verified")
+
+
+def _far_from_home(link: Link, mission: Any, limit_m: float) -> float | None:
+    """The first waypoint's distance from the vehicle's home (m), with a warning on stderr when
+    it is more than ``limit_m``; None when the vehicle has no home yet."""
+    from acquisition.transfer import first_waypoint_distance_m, request_home_position
+
+    home = request_home_position(link, timeout_s=1.0, retries=1)
+    if home is None:
+        click.echo(
+            "note: the vehicle reports no home position yet (no GPS fix?): the distance to the first "
+            "waypoint is not checked",
+            err=True,
+        )
+        return None
+    distance = first_waypoint_distance_m(mission.items, home)
+    if distance is not None and distance > limit_m:
+        click.echo(
+            f"warning: the first waypoint is {distance / 1000:.1f} km from the vehicle's home "
+            f"({home.lat_deg:.6f}, {home.lon_deg:.6f}); more than --max-home-distance-m {limit_m:g} m. "
+            f"Check that the vehicle is at the survey site and the mission is this site's: it would "
+            f"fly {distance / 1000:.1f} km to start.",
+            err=True,
+        )
+    return distance

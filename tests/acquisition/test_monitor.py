@@ -19,6 +19,8 @@ from typing import Any
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 from pyproj import Geod
 
@@ -30,6 +32,7 @@ from acquisition.monitor import (
     MonitorState,
     StationPlan,
     StopReason,
+    _SeqCounter,
     load_station_plan,
     monitor,
 )
@@ -391,7 +394,9 @@ def test_missed_stations_are_those_passed_without_a_photo(tmp_path: Path) -> Non
     state = rec.state()
     # 11 is the last station: nothing later was reached, so it is not yet known as missed
     assert state.missed_stations == (2, 8)
-    assert state.photos_taken == 9 and state.stations_taken == 9 and state.extra_photos == 0
+    # the image index says 11 photos were taken; the events of two never came (2 and 8)
+    assert state.photos_taken == 11 and state.events_received == 9 and state.photos_unseen == 2
+    assert state.stations_taken == 9 and state.extra_photos == 0
     rec.record(wire(heartbeat(False)), T0 + 100)  # landed and disarmed: the flight is over
     final = rec.close()
     assert final.flight_over and final.missed_stations == (2, 8, 11)
@@ -405,9 +410,10 @@ def test_late_photo_unmisses_and_far_photo_is_extra(tmp_path: Path) -> None:
         rec.record(wire(system_time(0.0)), T0)
         fly(rec, wire, legs, skip={1}, until=3)
         assert rec.state().missed_stations == (1,)
-        rec.record(wire(feedback(50.0, 99, 10.0 + 3.0, 1.0)), T0 + 50)  # late, 3.2 m off
+        # station 1's event (image index 2) arrives late, 3.2 m off
+        rec.record(wire(feedback(50.0, 2, 10.0 + 3.0, 1.0)), T0 + 50)
         assert rec.state().missed_stations == ()
-        rec.record(wire(feedback(51.0, 100, 500.0, 0.0)), T0 + 51)  # nowhere near a station
+        rec.record(wire(feedback(51.0, 4, 500.0, 0.0)), T0 + 51)  # nowhere near a station
         state = rec.state()
     assert state.extra_photos == 1 and state.photos_taken == 4
 
@@ -566,6 +572,8 @@ def gcs_start_mission(url: str) -> None:
                 )
             )
             ack = link.recv({"COMMAND_ACK"}, timeout_s=3.0)
+            while ack is not None and ack.command != command:  # a monitor's answers too
+                ack = link.recv({"COMMAND_ACK"}, timeout_s=3.0)
             assert ack is not None and ack.command == command and ack.result == 0
 
 
@@ -706,7 +714,9 @@ def test_link_drop_mid_flight_is_survived_and_the_recording_kept(
     # none was shot after the monitor was back (the update that says so, in simulated time)
     back_at = min(t for t, st in box["clocked"] if st.reconnects == 1)
     assert max(s.time_s for s in shots if s.index in set(lost)) <= back_at
-    assert len(ev) == n - len(lost) == state.photos_taken
+    assert len(ev) == n - len(lost) == state.events_received
+    # the image index still counts every photo: the lost ones are photos unseen, not untaken
+    assert state.photos_taken == n and state.photos_unseen == len(lost)
     # ... and the monitor reports exactly their stations as missed (img_idx k is station k-1)
     assert state.missed_stations == tuple(i - 1 for i in lost)
     _, _, dist = GEOD.inv(
@@ -800,6 +810,13 @@ class ScriptedVehicle:
                 return
             peer.sendall(b"".join(packets))
             if k < len(self.scripts) - 1:
+                # read what the monitor sends (its heartbeat, its stream requests) as a vehicle
+                # does: closing with unread bytes would reset the connection and could discard
+                # what was sent before the reset
+                peer.settimeout(0.5)
+                with contextlib.suppress(OSError):
+                    while peer.recv(4096):
+                        pass
                 peer.shutdown(socket.SHUT_RDWR)
                 peer.close()
             else:
@@ -894,3 +911,269 @@ def test_tlog_holds_every_system_and_the_heartbeat_waits_and_no_false_loss_is_co
     # the tlog reader sees the vehicle and names the other sources
     flight = read_tlog(result.tlog_path)
     assert any("2/1" in w and "2/154" in w for w in flight.warnings)
+
+
+# --- loss counting: the 8-bit sequence rule, and a fast sender ---------------------------------
+
+
+def test_a_burst_of_200_lost_is_200_lost_not_one_late(tmp_path: Path) -> None:
+    # the old rule read every jump of 128 or more as a late arrival: 200 lost counted as -1
+    wire = Wire()
+    with FlightRecorder(tmp_path / "rec") as rec:
+        for seq in [*range(0, 50), *range(250, 256), *range(0, 10)]:  # 50..249 lost: 200
+            rec.record(wire(heartbeat(False), seq=seq), T0)
+        one = rec.state().link[0]
+    assert (one.received, one.lost, one.late, one.duplicates) == (66, 200, 0, 0)
+
+
+@settings(max_examples=80, deadline=None)
+@given(
+    st.lists(st.tuples(st.integers(2, 40), st.integers(0, 230)), min_size=1, max_size=12),
+    st.lists(st.integers(min_value=0, max_value=5000), max_size=8),
+    st.integers(min_value=0, max_value=255),
+)
+def test_loss_is_counted_exactly_for_any_bursts_and_swaps(
+    runs: list[tuple[int, int]], swaps: list[int], start: int
+) -> None:
+    # Truth by construction: a sender numbers its messages 0, 1, 2... (sent mod 256); runs
+    # are delivered, bursts of up to 250 (8 bits tell 254 at most; a swap after a burst adds
+    # one to the jump) are not, and a few pairs
+    # of consecutive messages arrive swapped. The counter must find every burst message lost,
+    # each swap as one late arrival, and every delivered message received.
+    delivered: list[int] = []
+    n = 0
+    for run_length, burst in runs:
+        delivered.extend(range(n, n + run_length))
+        n += run_length + burst
+    lost_truth = delivered[-1] + 1 - len(delivered)  # a burst after the last run is not seen
+    late_truth = 0
+    last_swap = -10
+    for where in sorted(set(swaps)):
+        k = where % len(delivered)
+        # (from the second message: one older than the first received cannot be told late)
+        if k >= 1 and k - last_swap >= 3 and k + 1 < len(delivered) and delivered[k + 1] == delivered[k] + 1:
+            delivered[k], delivered[k + 1] = delivered[k + 1], delivered[k]
+            late_truth += 1
+            last_swap = k
+    counter = _SeqCounter()
+    for number in delivered:
+        counter.add((number + start) % 256)
+    assert counter.received == len(delivered)
+    assert counter.late == late_truth
+    assert counter.lost == lost_truth
+    assert counter.duplicates == 0
+
+
+def test_monitor_keeps_up_with_a_fast_relay_and_counts_loss_exactly(tmp_path: Path) -> None:
+    """A ground station relaying over UDP at about 1,500 messages/s for 4 s, with bursts of 1,
+    31, 108 and 200 messages never sent: the monitor reads in its own thread, so the
+    kernel drops nothing, and every message it did not get is counted lost, no more."""
+    receiver = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    receiver.bind(("127.0.0.1", 0))
+    port = receiver.getsockname()[1]
+    receiver.close()
+    encoder = mavlink2.MAVLink(None, srcSystem=1, srcComponent=1)
+    packets: list[bytes] = []
+    index = 0
+    for k in range(6000):
+        if k % 100 == 0:
+            msg: Any = heartbeat(False)
+        elif k % 40 == 0:
+            index += 1
+            msg = feedback(k / 1500, index, 0.0, 0.0)
+        else:
+            msg = mavlink2.MAVLink_attitude_message(k, 0.01, -0.02, 1.5, 0.0, 0.0, 0.0)
+        packets.append(bytes(msg.pack(encoder)))
+        encoder.seq = (encoder.seq + 1) % 256  # pack() numbers the message; send() would count
+    omitted: set[int] = set()
+    for start, length in ((1000, 1), (2000, 31), (3000, 108), (4000, 200)):
+        omitted.update(range(start, start + length))
+    events_omitted = sum(1 for k in omitted if k % 40 == 0 and k % 100 != 0)
+    stop = threading.Event()
+    box: dict[str, Any] = {}
+
+    def run() -> None:
+        try:
+            box["result"] = monitor(f"udpin://127.0.0.1:{port}", None, tmp_path / "fast", stop_event=stop)
+        except BaseException as error:  # handed to the test
+            box["error"] = error
+
+    thread = threading.Thread(target=run, daemon=True)
+    thread.start()
+    sender = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    # heartbeats until the monitor has opened its port and heard the vehicle
+    # (numbered 255, just before the stream's 0: repeated, they are duplicates, not losses)
+    encoder.seq = 255
+    deadline = time.monotonic() + 10
+    while not (tmp_path / "fast" / "flight.tlog").exists() and time.monotonic() < deadline:
+        sender.sendto(bytes(heartbeat(False).pack(encoder)), ("127.0.0.1", port))
+        time.sleep(0.05)
+    assert (tmp_path / "fast" / "flight.tlog").exists(), box.get("error")
+    time.sleep(0.3)
+    encoder_first = len(packets)
+    started = time.monotonic()
+    chunk = 15  # every 10 ms: 1,500 messages/s
+    for k in range(0, len(packets), chunk):
+        for j in range(k, min(k + chunk, len(packets))):
+            if j not in omitted:
+                sender.sendto(packets[j], ("127.0.0.1", port))
+        time.sleep(max(0.0, started + (k + chunk) / 1500 - time.monotonic()))
+    elapsed = time.monotonic() - started
+    time.sleep(1.0)
+    stop.set()
+    thread.join(timeout=15)
+    sender.close()
+    assert "error" not in box, box.get("error")
+    assert encoder_first / elapsed > 1000, f"the sender managed only {encoder_first / elapsed:.0f} msg/s"
+    state = box["result"].state
+    vehicle = next(q for q in state.link if q.system_id == 1)
+    # the packed stream: the heartbeats before it were packed by the same encoder, so its
+    # sequence numbers run on from them; every number not delivered is lost, exactly
+    assert vehicle.lost == len(omitted), (vehicle, len(omitted))
+    assert vehicle.late == 0 and vehicle.received == len(packets) - len(omitted) + 1
+    assert state.events_received == index - events_omitted
+    assert state.photos_taken == index and state.photos_unseen == events_omitted
+    assert state.link_quality_pct is not None and state.link_quality_pct < 100 * (1 - 300 / 6300)
+
+
+# --- what the monitor asks of the vehicle, late joins, a new mission ----------------------------
+
+
+def short_line(east_m: float = 60.0, north_m: float = 0.0, trigger_m: float = 10.0) -> list[Any]:
+    """Take off to 20 m, fly to a line's start, photos every ``trigger_m`` along ``east_m``, RTL:
+    the simulator fires at the start and every ``trigger_m``: east_m // trigger_m + 1 photos."""
+    from planner.mission import MissionItem
+
+    a = offset(10.0, north_m)
+    b = offset(10.0 + east_m + trigger_m / 2, north_m)  # the last photo half a step before
+    return [
+        MissionItem.takeoff(LAT0, LON0, 20.0),
+        MissionItem.waypoint(a[0], a[1], 20.0),
+        MissionItem.cam_trigger_distance(trigger_m),
+        MissionItem.waypoint(b[0], b[1], 20.0),
+        MissionItem.cam_trigger_distance(0.0, trigger_now=False),
+        MissionItem.return_to_launch(),
+    ]
+
+
+def test_monitor_asks_ardupilot_for_its_streams_and_stops_after_landing(
+    tmp_path: Path, run_monitor: Any
+) -> None:
+    from acquisition.telemetry.tlog import read_tlog as read
+    from planner.mission import HomePosition
+
+    home = HomePosition(lat_deg=LAT0, lon_deg=LON0)
+    with SimulatedVehicle(speedup=60, home=home, boot_delay_s=0.0, gps_fix_s=0.2) as vehicle:
+        assert vehicle.streams_on_request  # ArduPilot's flavour: nothing periodic until asked
+        vehicle.load_mission(short_line())
+        url = vehicle.url_for_client
+        box = run_monitor(url, None, tmp_path / "flight")
+        gcs_start_mission(url)
+        box["thread"].join(timeout=60)
+        assert not box["thread"].is_alive() and "error" not in box, box.get("error")
+        shots = list(vehicle.flight.shots)
+        rates = vehicle.flight.stream_rates_hz()
+        asked = vehicle.received_counts.get("COMMAND_LONG", 0)
+    result: MonitorResult = box["result"]
+    assert result.reason is StopReason.LANDED  # landed and disarmed: it stopped by itself
+    assert rates["GLOBAL_POSITION_INT"] == pytest.approx(10.0) and rates["SYSTEM_TIME"] == pytest.approx(1.0)
+    assert rates["ATTITUDE"] == pytest.approx(10.0) and rates["MISSION_CURRENT"] == pytest.approx(1.0)
+    assert asked >= 5
+    state = result.state
+    assert state.missing_streams == () and state.landed_state == 1
+    flight = read(result.tlog_path)
+    assert flight.positions is not None and len(flight.positions) > 50  # positions recorded
+    assert flight.attitudes is not None and len(flight.attitudes) > 50
+    assert len(shots) == 7 and state.photos_taken == 7
+    # no plan folder: the stations are the vehicle's own mission, read back and replayed
+    assert state.stations_from == "vehicle" and state.photos_planned == 7
+    assert state.missed_stations == () and state.extra_photos == 0
+
+
+class _Mute(SimulatedVehicle):
+    """A vehicle whose firmware honours no stream request (neither way)."""
+
+    def _on_request_data_stream(self, msg: Any) -> None:
+        return
+
+    def _run_command(self, command: int, params: Any) -> int:
+        if command == 511:
+            return int(mavlink2.MAV_RESULT_UNSUPPORTED)
+        return super()._run_command(command, params)
+
+
+def test_streams_that_never_come_are_named(
+    tmp_path: Path, run_monitor: Any, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    import acquisition.monitor_link as monitor_link
+
+    monkeypatch.setattr(monitor_link, "STREAM_CHECK_S", 0.8)
+    with _Mute(speedup=10, boot_delay_s=0.0, gps_fix_s=0.2) as vehicle:
+        box = run_monitor(vehicle.url_for_client, None, tmp_path / "flight")
+        deadline = time.monotonic() + 15
+        while time.monotonic() < deadline and not (box["states"] and box["states"][-1].missing_streams):
+            time.sleep(0.1)
+        legacy = vehicle.received_counts.get("REQUEST_DATA_STREAM", 0)
+    states = box["states"]
+    assert states and set(states[-1].missing_streams) == {
+        "GLOBAL_POSITION_INT",
+        "ATTITUDE",
+        "SYSTEM_TIME",
+        "MISSION_CURRENT",
+    }
+    assert legacy >= 4  # the fallback was tried: REQUEST_DATA_STREAM for each group
+    warning = next(r.getMessage() for r in caplog.records if "does not send" in r.getMessage())
+    assert "GLOBAL_POSITION_INT" in warning and "SRn_POSITION" in warning
+
+
+def test_a_monitor_started_mid_flight_says_so_and_misses_nothing(tmp_path: Path, run_monitor: Any) -> None:
+    from planner.mission import HomePosition
+
+    home = HomePosition(lat_deg=LAT0, lon_deg=LON0)
+    with SimulatedVehicle(
+        speedup=15, home=home, boot_delay_s=0.0, gps_fix_s=0.2, streams_on_request=False
+    ) as vehicle:
+        vehicle.load_mission(short_line(east_m=100.0))
+        assert vehicle.wait_sim_time(0.3)  # a GPS fix, or no arming
+        gcs_start_mission(vehicle.url_for_client)
+        deadline = time.monotonic() + 30
+        while len(vehicle.flight.shots) < 3 and time.monotonic() < deadline:
+            time.sleep(0.01)
+        box = run_monitor(vehicle.url_for_client, None, tmp_path / "flight")
+        box["thread"].join(timeout=60)
+        assert not box["thread"].is_alive() and "error" not in box, box.get("error")
+        shots = list(vehicle.flight.shots)
+    state: MonitorState = box["result"].state
+    seen = sorted(int(s) for s in read_tlog(box["result"].tlog_path).events.seq)
+    assert len(shots) == 11
+    assert state.joined_late and state.photos_before_join == seen[0] - 1 >= 3
+    assert state.photos_taken == 11 and state.events_received == len(seen) == 11 - state.photos_before_join
+    # the stations before the join are not counted as missed
+    assert state.missed_stations == () and state.photos_planned == 11
+
+
+def test_a_new_mission_uploaded_in_the_field_is_followed(tmp_path: Path, run_monitor: Any) -> None:
+    from planner.mission import HomePosition, Mission
+
+    home = HomePosition(lat_deg=LAT0, lon_deg=LON0)
+    first, refly = short_line(east_m=40.0), short_line(east_m=80.0, north_m=30.0)
+    refly.insert(1, refly[1])  # another item count: MISSION_CURRENT's total changes
+    with SimulatedVehicle(speedup=30, home=home, boot_delay_s=0.0, gps_fix_s=0.2) as vehicle:
+        vehicle.load_mission(first)
+        url = vehicle.url_for_client
+        box = run_monitor(url, None, tmp_path / "flight", stop_when_landed=False)
+        deadline = time.monotonic() + 15
+        while time.monotonic() < deadline and not (box["states"] and box["states"][-1].photos_planned == 5):
+            time.sleep(0.05)
+        assert box["states"][-1].photos_planned == 5  # the first mission: 40 m / 10 m + 1
+        with Link.open(url, heartbeat_timeout_s=5.0, source_component=191) as link:
+            upload_mission(link, Mission(items=tuple(refly), home=home, autopilot=Autopilot.ARDUPILOT))
+        gcs_start_mission(url)
+        assert vehicle.wait_landed(60)
+        time.sleep(1.5)
+        shots = len(vehicle.flight.shots)
+        states = box["states"]
+    assert shots == 9
+    last = states[-1]
+    assert last.mission_changes >= 1 and last.stations_from == "vehicle"
+    assert last.photos_planned == 9 and last.stations_taken == 9 and last.missed_stations == ()

@@ -746,7 +746,7 @@ def test_serial_link_is_never_faster_than_its_baud_rate() -> None:
     # Telemetry at 20x real time floods a 9600-baud link: bytes reach the ground station as
     # fast as the line allows and never faster (8N1: 960 bytes/s), give or take one packet.
     baud = 9600
-    with SimulatedVehicle(speedup=20, gps_fix_s=0, link_baud=baud) as vehicle:
+    with SimulatedVehicle(speedup=20, gps_fix_s=0, link_baud=baud, streams_on_request=False) as vehicle:
         host, port = vehicle.url_for_client.removeprefix("tcp://").split(":")
         with socket.create_connection((host, int(port)), timeout=2.0) as sock:
             time.sleep(1.2)  # let the link's buffer fill: from here the line is the limit
@@ -965,6 +965,8 @@ def test_flight_through_the_link_writes_a_readable_tlog(autopilot: Autopilot, tm
         if autopilot is Autopilot.PX4:
             items = items[1:]
         gcs = connect(v, timeout_s=1.0)
+        # every stream at 4 Hz, as MAVProxy asks at connection (REQUEST_DATA_STREAM, ALL)
+        gcs.conn.mav.request_data_stream_send(1, 1, 0, 4, 1)
         assert v.wait_sim_time(1.5)
         assert gcs.upload(items)[0] == ACCEPTED
         assert gcs.command(400, 1.0) == 0
@@ -1024,3 +1026,127 @@ def test_configs_refuse_impossible_values() -> None:
         FlightConfig(climb_rate_m_s=0)
     with pytest.raises(InputError, match="speedup"):
         SimulatedVehicle(speedup=0)
+
+
+# --- telemetry on request (ArduPilot's SRn_ rates are 0 on its serial ports) -----------------
+
+
+def _count(gcs: GroundStation, seconds: float) -> Counter[str]:
+    seen: Counter[str] = Counter()
+    end = time.monotonic() + seconds
+    while time.monotonic() < end:
+        msg = gcs.conn.recv_match(blocking=True, timeout=0.05)
+        if msg is not None:
+            seen[msg.get_type()] += 1
+    return seen
+
+
+def test_ardupilot_sends_only_heartbeats_until_asked_then_what_was_asked() -> None:
+    with SimulatedVehicle(gps_fix_s=0.0, home=HOME, speedup=5) as vehicle:
+        gcs = connect(vehicle)
+        quiet = _count(gcs, 1.0)
+        assert quiet["HEARTBEAT"] >= 3  # 1 Hz of simulated time, 5x
+        for name in ("GLOBAL_POSITION_INT", "ATTITUDE", "SYSTEM_TIME", "MISSION_CURRENT", "GPS_RAW_INT"):
+            assert quiet[name] == 0, name
+        # SET_MESSAGE_INTERVAL (511): GLOBAL_POSITION_INT (33) every 0.5 s of simulated time
+        assert gcs.command(511, 33, 500_000) == mavlink2.MAV_RESULT_ACCEPTED
+        asked = _count(gcs, 2.0)
+        # 2 wall s x 5 = 10 simulated s at 2 Hz: about 20 (the wall clock of the test is loose)
+        assert 12 <= asked["GLOBAL_POSITION_INT"] <= 26, asked
+        assert asked["ATTITUDE"] == 0 and asked["SYSTEM_TIME"] == 0
+        # a message it cannot send: UNSUPPORTED, as ArduPilot answers an unknown id
+        assert gcs.command(511, 12345, 100_000) == mavlink2.MAV_RESULT_UNSUPPORTED
+        # -1 stops it
+        assert gcs.command(511, 33, -1) == mavlink2.MAV_RESULT_ACCEPTED
+        gcs.drain()
+        assert _count(gcs, 0.6)["GLOBAL_POSITION_INT"] <= 1
+        # the legacy REQUEST_DATA_STREAM: group EXTRA1 (10) is ATTITUDE, as in ArduCopter
+        gcs.conn.mav.request_data_stream_send(1, 1, 10, 4, 1)
+        legacy = _count(gcs, 1.0)
+        assert legacy["ATTITUDE"] >= 10 and legacy["GLOBAL_POSITION_INT"] == 0, legacy
+        gcs.close()
+
+
+def test_px4_streams_from_boot() -> None:
+    with SimulatedVehicle(autopilot=Autopilot.PX4, gps_fix_s=0.0, home=HOME, speedup=5) as vehicle:
+        gcs = connect(vehicle)
+        seen = _count(gcs, 1.0)
+        assert seen["GLOBAL_POSITION_INT"] >= 20 and seen["SYSTEM_TIME"] >= 2, seen
+        gcs.close()
+
+
+def test_vehicle_moves_to_the_uploaded_missions_home_before_its_first_flight() -> None:
+    far = HomePosition(lat_deg=HOME.lat_deg + 0.65, lon_deg=HOME.lon_deg - 0.3, alt_amsl_m=412.5)
+    items = survey_items(home_first=True, n=3, shift_deg=0.65)
+    items[0] = MissionItem(
+        command=16, frame=MavFrame.GLOBAL, param5=far.lat_deg, param6=far.lon_deg, param7=412.5
+    )
+    with SimulatedVehicle(boot_delay_s=0.0, gps_fix_s=0.0, home=HOME, follow_mission_home=True) as vehicle:
+        gcs = connect(vehicle)
+        result, _ = gcs.upload(items)
+        assert result == ACCEPTED
+        assert (vehicle.home.lat_deg, vehicle.home.lon_deg, vehicle.home.alt_amsl_m) == pytest.approx(
+            (far.lat_deg, far.lon_deg, 412.5), abs=1e-7
+        )
+        assert gcs.command(511, 33, 100_000) == mavlink2.MAV_RESULT_ACCEPTED
+        pos = gcs.recv(["GLOBAL_POSITION_INT"], timeout_s=2.0)
+        assert pos is not None
+        # on the ground at the new home: its elevation is the mission's home elevation
+        assert geodesic_distance_m(pos.lat * 1e-7, pos.lon * 1e-7, far.lat_deg, far.lon_deg) < 3.0
+        assert abs(pos.alt / 1000 - 412.5) < 2.0 and abs(pos.relative_alt / 1000) < 2.0
+        gcs.close()
+    # without follow_mission_home the vehicle stays where it was put
+    with SimulatedVehicle(boot_delay_s=0.0, gps_fix_s=0.0, home=HOME) as vehicle:
+        gcs = connect(vehicle)
+        assert gcs.upload(items)[0] == ACCEPTED
+        assert vehicle.home == HOME
+        gcs.close()
+
+
+def test_camera_card_stamps_frames_on_its_clock_and_drops_and_adds_on_request(tmp_path: Path) -> None:
+    from PIL import Image
+
+    from acquisition.exif import read_tags
+    from acquisition.simulator.camera import FrameCard
+
+    offset_s = -3723.25  # the camera is 1 h 2 min 3.25 s behind UTC
+    card = FrameCard(tmp_path / "card", clock_offset_s=offset_s, drop={2}, extra={3})
+    times = [1_760_000_000.0 + 2.213 * k for k in range(5)]
+    for t in times:
+        card.photo(t)
+    names = sorted(p.name for p in (tmp_path / "card").iterdir())
+    # 5 photos, the 2nd not written, one extra after the 3rd: 5 frames, nothing half-written
+    assert names == [f"IMG_{k:04d}.JPG" for k in range(1, 6)]
+    tags = [read_tags(tmp_path / "card" / name) for name in names]
+    # UTC of each exposure, frame by frame: photos 1, 3, the extra 0.4 s after 3, then 4, 5
+    truth = [times[0], times[2], times[2] + 0.4, times[3], times[4]]
+    for tag, t in zip(tags, truth, strict=True):
+        assert tag.capture_time_s is not None and not tag.capture_time_zone_known
+        assert tag.capture_time_s == pytest.approx(t + offset_s, abs=0.0015)  # milliseconds
+    with Image.open(tmp_path / "card" / names[0]) as image:  # a real JPEG that decodes
+        assert image.format == "JPEG" and image.size == (64, 48)
+    # a card that already holds frames is refused: two flights would mix
+    with pytest.raises(InputError, match="already holds frames"):
+        FrameCard(tmp_path / "card")
+
+
+def test_simulated_flight_writes_one_frame_per_photo(tmp_path: Path) -> None:
+    from acquisition.exif import read_tags
+    from acquisition.simulator.camera import FrameCard
+
+    card = FrameCard(tmp_path / "frames", clock_offset_s=12.5)
+    with SimulatedVehicle(
+        boot_delay_s=0.0, gps_fix_s=0.0, home=HOME, speedup=40, frames=card, streams_on_request=False
+    ) as vehicle:
+        items = survey_items(home_first=False, n=3)
+        items.insert(2, MissionItem.cam_trigger_distance(15.0))
+        vehicle.load_mission(items)
+        vehicle.auto_start()
+        assert vehicle.wait_landed(60)
+        shots = list(vehicle.flight.shots)
+    assert len(shots) >= 5
+    frames = sorted((tmp_path / "frames").glob("*.JPG"))
+    assert len(frames) == len(shots) == card.frames
+    for frame, shot in zip(frames, shots, strict=True):
+        stamp = read_tags(frame).capture_time_s
+        assert stamp == pytest.approx(shot.utc_s + 12.5, abs=0.0015)

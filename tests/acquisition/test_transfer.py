@@ -33,6 +33,7 @@ from acquisition.mavlink_items import (
 from acquisition.simulator.server import FaultConfig, SimulatedVehicle
 from acquisition.transfer import (
     MissionState,
+    MissionTooLargeError,
     MissionTransferError,
     MissionVerificationError,
     TransferPhase,
@@ -429,7 +430,10 @@ def test_vehicle_without_room_refuses(autopilot: Autopilot) -> None:
         assert sim.stored_mission() == before
     error = caught.value
     assert error.mission_state is MissionState.UNCHANGED
-    assert "no room" in str(error) and "NO_SPACE" in str(error)
+    if autopilot is Autopilot.ARDUPILOT:  # "Only 724 items": room enough, so a boot refusal
+        assert "no room" in str(error) and "NO_SPACE" in str(error)
+    else:  # PX4 refuses only what it cannot hold
+        assert isinstance(error, MissionTooLargeError) and "NO_SPACE" in str(error)
     assert "mission is unchanged" in str(error)
 
 
@@ -705,3 +709,67 @@ def test_verify_accepts_px4_storage() -> None:
     assert [d.field for d in verify_readback(sent, turned, Autopilot.PX4, None)] == ["param 4"]
     kept_hold = [received[0], replace(sent[1], param1=0.0, param3=0.0)]
     assert [d.field for d in verify_readback(sent, kept_hold, Autopilot.PX4, None)] == ["param 1"]
+
+
+def test_mission_larger_than_the_vehicle_is_refused_at_once_with_the_excess() -> None:
+    items = survey_items(40)
+    with vehicle(Autopilot.ARDUPILOT, max_items=30) as sim:
+        sim.load_mission(survey_items(5))
+        before = sim.stored_mission()
+        with (
+            Link.open(sim.url_for_client, heartbeat_timeout_s=5.0) as link,
+            pytest.raises(MissionTooLargeError) as caught,
+        ):
+            upload_mission(link, mission_of(items), **{**FAST, "no_space_wait_s": 2.0})
+        # no retry as after boot: one MISSION_COUNT, and no pause of no_space_wait_s
+        assert sim.received_counts.get("MISSION_COUNT") == 1
+        assert sim.stored_mission() == before
+    error = caught.value
+    count = len(items) + 1  # ArduPilot: home is item 0
+    assert (error.items, error.capacity) == (count, 30)
+    assert f"{count} items (home included)" in str(error) and "at most 30" in str(error)
+    assert f"{count - 30} too many" in str(error) and "sorties" in str(error)
+    assert error.mission_state is MissionState.UNCHANGED
+
+
+@pytest.mark.parametrize(
+    ("planned", "actual"), [(Autopilot.PX4, Autopilot.ARDUPILOT), (Autopilot.ARDUPILOT, Autopilot.PX4)]
+)
+def test_plan_made_for_the_other_autopilot_is_named_not_sent(planned: Autopilot, actual: Autopilot) -> None:
+    items = [
+        MissionItem.takeoff(HOME.lat_deg, HOME.lon_deg, 30.0),
+        MissionItem.gimbal_manager_pitch_yaw(-90, 0),
+    ]
+    mission = Mission(
+        items=tuple(items), home=HOME, autopilot=planned, metadata={"autopilot_from_file": True}
+    )
+    name = {Autopilot.PX4: "PX4", Autopilot.ARDUPILOT: "ArduPilot"}
+    with vehicle(actual) as sim:
+        with (
+            Link.open(sim.url_for_client, heartbeat_timeout_s=5.0) as link,
+            pytest.raises(MissionValidationError) as caught,
+        ):
+            upload_mission(link, mission, **FAST)
+        assert "MISSION_COUNT" not in sim.received_counts
+    text = str(caught.value)
+    assert f"planned for {name[planned]}" in text and f"is {name[actual]}" in text
+    assert f'autopilot = "{actual.value}"' in text and "NaN" not in text
+
+
+def test_trigger_distance_truncated_to_whole_metres_fails_verification() -> None:
+    sent = [MissionItem.cam_trigger_distance(11.06)]
+    # what float32 storage gives back passes ...
+    stored32 = [ardupilot_home(), replace(sent[0], param1=float32(11.06))]
+    assert verify_readback(sent, stored32, Autopilot.ARDUPILOT, None) == []
+    # ... a distance truncated to whole metres (Mission Planner's habit) does not
+    truncated = [replace(sent[0], param1=11.0)]
+    found = verify_readback(sent, [ardupilot_home(), *truncated], Autopilot.ARDUPILOT, VehicleType.MULTIROTOR)
+    assert [(d.index, d.field, d.received) for d in found] == [(1, "param 1", "11")]
+    # and end to end: a vehicle that stored the truncated distance is caught by the read-back
+    items = [*survey_items(6), MissionItem.cam_trigger_distance(11.06)]
+    with vehicle(Autopilot.ARDUPILOT) as sim, Link.open(sim.url_for_client, heartbeat_timeout_s=5.0) as link:
+        upload_mission(link, mission_of(items), **FAST)
+        sim.corrupt_stored_item(len(items), param1=11.0)
+        received = download_mission(link, timeout_s=0.2)
+    found = verify_readback(items, received, Autopilot.ARDUPILOT, VehicleType.MULTIROTOR)
+    assert [(d.index, d.field) for d in found] == [(len(items), "param 1")]

@@ -219,7 +219,9 @@ def test_monitor_says_it_lost_the_link_and_reconnected(tmp_path: Path, small_pla
     assert "link lost" in result.stderr and "reconnected (1 so far)" in result.stderr
     assert "1 drops, 1 reconnections" in result.stdout
     saved = json.loads((out / "monitor.json").read_text())
-    lost = n - saved["photos_taken"]
+    assert saved["photos_taken"] == n  # counted from the image index, events lost or not
+    lost = n - saved["events_received"]
+    assert saved["photos_unseen"] == lost
     assert 0 < lost < n - n // 3  # lost while cut; recorded before and after
     assert len(saved["missed_stations"]) == lost
     assert f"stations missed: {lost}" in result.stdout

@@ -52,6 +52,8 @@ def test_sim_flies_a_preloaded_mission_and_writes_the_tlog(tmp_path: Path) -> No
         "--mission",
         str(mission),
         "--auto-start",
+        "--streams",
+        "always",  # no ground station here asks for telemetry: stream it anyway
         "--until-landed",
         "--speedup",
         "200",
@@ -81,10 +83,33 @@ def test_sim_flies_a_preloaded_mission_and_writes_the_tlog(tmp_path: Path) -> No
 
 def test_sim_bad_input_is_a_clear_error(tmp_path: Path) -> None:
     code, _, err = _run("sim", "--listen", "serial:///dev/ttyUSB0", "--duration-s", "0")
-    assert code == 1 and "tcpin://" in err and "Traceback" not in err
+    assert code == 2 and "tcpin://" in err and "Traceback" not in err  # not a URL it can listen on
     not_mission = tmp_path / "notes.txt"
     not_mission.write_text("hello\n")
     code, _, err = _run("sim", "--mission", str(not_mission), "--duration-s", "0")
     assert code == 2 and "not a mission file" in err
     code, out, _ = _run("sim", "--help")
     assert code == 0 and "Example: sfap sim" in out and "--loss-pct" in out
+
+
+def test_sim_stands_at_the_plans_home_and_refuses_a_bad_home(tmp_path: Path) -> None:
+    from planner.formats.qgc_plan import write_plan
+    from planner.mission import HomePosition, Mission, MissionItem
+
+    home = HomePosition(lat_deg=42.2012, lon_deg=-1.4866, alt_amsl_m=412.5)
+    plan_dir = tmp_path / "plan"
+    plan_dir.mkdir()
+    items = (MissionItem.takeoff(home.lat_deg, home.lon_deg, 30.0), MissionItem.return_to_launch())
+    write_plan(Mission(items=items, home=home), plan_dir / "mission.plan")
+    code, _, err = _run(
+        "sim", "--listen", "tcpin://127.0.0.1:0", "--plan", str(plan_dir), "--duration-s", "0.2"
+    )
+    assert code == 0, err
+    assert "home 42.2012000, -1.4866000, ground at 412.5 m AMSL" in err
+    for bad in ("91,0,0", "42.2,-1.5", "a,b,c"):
+        code, _, err = _run("sim", "--home", bad, "--duration-s", "0")
+        assert code == 2 and "LAT,LON,ALT" in err and "Traceback" not in err, err
+    code, _, err = _run("sim", "--camera-offset-s", "5", "--duration-s", "0")
+    assert code == 2 and "--frames" in err
+    code, _, err = _run("sim", "--plan", str(tmp_path / "nowhere"), "--duration-s", "0")
+    assert code == 2 and "sfap plan -o" in err

@@ -66,7 +66,7 @@ def test_upload_verified_exits_0(tmp_path: Path, autopilot: Autopilot, suffix: s
 
 
 def test_upload_json(tmp_path: Path) -> None:
-    path = write_plan(mission(30), tmp_path / "m.plan")
+    path = write_plan(mission(30, autopilot=Autopilot.PX4), tmp_path / "m.plan")
     with sim(Autopilot.PX4, faults=FaultConfig(loss_pct=10.0, seed=3), request_timeout_s=0.03) as vehicle:
         code, out, err = run(
             "upload",
@@ -116,7 +116,7 @@ def test_readback_difference_exits_1_and_lists_items(tmp_path: Path) -> None:
 
 
 def test_refusing_vehicle_exits_1_with_state(tmp_path: Path) -> None:
-    path = write_plan(mission(), tmp_path / "m.plan")
+    path = write_plan(mission(autopilot=Autopilot.PX4), tmp_path / "m.plan")
     with sim(Autopilot.PX4, faults=FaultConfig(refuse="invalid")) as vehicle:
         code, _, err = run("upload", str(path), "--connect", vehicle.url_for_client, *FAST)
     assert code == 1
@@ -137,7 +137,7 @@ def test_not_a_mission_file(tmp_path: Path) -> None:
 def test_mission_over_the_altitude_limit_is_not_sent(tmp_path: Path) -> None:
     path = write_plan(mission(), tmp_path / "m.plan")
     code, _, err = run("upload", str(path), "--connect", "tcp://127.0.0.1:9", "--max-alt-m", "50")
-    assert code == 1
+    assert code == 2  # a mission that fails validation is bad input
     assert "exceeds the vehicle limit 50.0 m" in err
     assert "Nothing was sent" in err
 
@@ -152,7 +152,7 @@ def test_mission_over_the_altitude_limit_is_not_sent(tmp_path: Path) -> None:
 def test_bad_connection_exits_1(tmp_path: Path, url: str, words: str) -> None:
     path = write_plan(mission(), tmp_path / "m.plan")
     code, _, err = run("upload", str(path), "--connect", url)
-    assert code == 1
+    assert code == (2 if url.startswith("http") else 1)  # a URL that is not one is bad usage
     assert words in err
     assert "Nothing was sent: the vehicle's mission is unchanged." in err
     assert "Traceback" not in err
@@ -210,6 +210,47 @@ def test_clear(autopilot: Autopilot) -> None:
 def test_require_signing_without_a_key(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.delenv("SFAP_SIGNING_KEY", raising=False)
     code, _, err = run("clear", "--connect", "tcp://127.0.0.1:9", "--require-signing")
-    assert code == 1
+    assert code == 2  # an option missing its key: bad usage
     assert "--require-signing needs a key" in err
     assert "mission is unchanged" in err
+
+
+def test_first_waypoint_far_from_home_warns(tmp_path: Path) -> None:
+    path = write_plan(mission(), tmp_path / "m.plan")
+    far_home = HomePosition(lat_deg=HOME.lat_deg + 0.5, lon_deg=HOME.lon_deg, alt_amsl_m=300.0)
+    with sim(home=far_home, gps_fix_s=0.0) as vehicle:
+        code, _, err = run("upload", str(path), "--connect", vehicle.url_for_client, *FAST)
+    assert code == 0, err
+    assert "warning: the first waypoint is 55.5 km from the vehicle's home" in err  # 0.5 deg of latitude
+    with sim(home=HOME, gps_fix_s=0.0) as vehicle:
+        code, _, err = run("upload", str(path), "--connect", vehicle.url_for_client, *FAST)
+    assert code == 0 and "first waypoint" not in err, err
+    # the limit is the crew's: 60 km accepts the far one
+    with sim(home=far_home, gps_fix_s=0.0) as vehicle:
+        code, _, err = run(
+            "upload", str(path), "--connect", vehicle.url_for_client, *FAST, "--max-home-distance-m", "60000"
+        )
+    assert code == 0 and "first waypoint" not in err, err
+
+
+def test_mission_too_large_exits_1_at_once_and_plan_for_px4_exits_2(tmp_path: Path) -> None:
+    big = write_plan(mission(count=40), tmp_path / "big.plan")
+    with sim(max_items=30) as vehicle:
+        code, _, err = run("upload", str(big), "--connect", vehicle.url_for_client, *FAST)
+        assert vehicle.received_counts.get("MISSION_COUNT") == 1
+    assert code == 1
+    assert "41 items (home included)" in err and "at most 30" in err and "11 too many" in err
+    px4 = write_plan(mission(autopilot=Autopilot.PX4), tmp_path / "px4.plan")
+    with sim() as vehicle:
+        code, _, err = run("upload", str(px4), "--connect", vehicle.url_for_client, *FAST)
+        assert "MISSION_COUNT" not in vehicle.received_counts
+    assert code == 2
+    assert "planned for PX4" in err and "is ArduPilot" in err and "Traceback" not in err
+
+
+def test_missing_signing_key_file_is_bad_usage(tmp_path: Path) -> None:
+    path = write_plan(mission(), tmp_path / "m.plan")
+    code, _, err = run(
+        "upload", str(path), "--connect", "tcp://127.0.0.1:9", "--signing-key", str(tmp_path / "nokey")
+    )
+    assert code == 2 and "cannot read the signing key file" in err
