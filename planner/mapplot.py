@@ -17,25 +17,26 @@ no global state is touched and threads can render side by side.
 from __future__ import annotations
 
 import io
+import itertools
 import logging
 import math
 import os
 from pathlib import Path
-from typing import Any, cast
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.collections import LineCollection, PolyCollection
-from matplotlib.figure import Figure
-from matplotlib.lines import Line2D
-from matplotlib.patches import Patch, PathPatch, Rectangle
-from matplotlib.path import Path as MplPath
 from numpy.typing import NDArray
 from shapely.geometry import MultiPolygon, Polygon
 
 from .errors import InputError
 from .outputs import atomic_write_bytes
-from .plan import PassKind, SurveyPlan
+from .plan import FlightPass, PassKind, SurveyPlan
+
+if TYPE_CHECKING:  # matplotlib is imported when a map is drawn (about 0.2 s), not with the module
+    from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+    from matplotlib.path import Path as MplPath
 
 log = logging.getLogger(__name__)
 
@@ -86,6 +87,8 @@ def _thin(n: int, max_count: int) -> tuple[NDArray[np.int64], int]:
 
 def polygon_path(geom: Polygon | MultiPolygon, ox: float, oy: float) -> MplPath | None:
     """A compound matplotlib path (exteriors and holes) of a polygon, shifted by -origin."""
+    from matplotlib.path import Path as MplPath
+
     parts = list(geom.geoms) if isinstance(geom, MultiPolygon) else [geom]
     vertices: list[NDArray[np.float64]] = []
     codes: list[NDArray[np.uint8]] = []
@@ -104,6 +107,39 @@ def polygon_path(geom: Polygon | MultiPolygon, ox: float, oy: float) -> MplPath 
     return MplPath(np.concatenate(vertices), np.concatenate(codes))
 
 
+def pass_line_count(flight_pass: FlightPass, tolerance_m: float = 0.01) -> int:
+    """How many lines (rows) a pass flies: its camera-on segments grouped by their offset across
+    the pass direction (a line that crosses a hole or a concave bay is flown as two or more
+    segments of one row). The map's header and legend both count with this."""
+    lines = flight_pass.lines
+    if not lines:
+        return 0
+    dx = dy = 0.0
+    for line in lines:  # the direction of the first segment of positive length
+        dx, dy = line.end_xy_m[0] - line.start_xy_m[0], line.end_xy_m[1] - line.start_xy_m[1]
+        if math.hypot(dx, dy) > 0:
+            break
+    norm = math.hypot(dx, dy)
+    if norm == 0:  # every segment a single point: one row per distinct point
+        return len(
+            {(round(ln.start_xy_m[0] / tolerance_m), round(ln.start_xy_m[1] / tolerance_m)) for ln in lines}
+        )
+    ux, uy = dx / norm, dy / norm
+    offsets = sorted(-ux * ln.start_xy_m[1] + uy * ln.start_xy_m[0] for ln in lines)
+    rows = 1
+    for before, after in itertools.pairwise(offsets):
+        if after - before > tolerance_m:
+            rows += 1
+    return rows
+
+
+def _lines_text(rows: int, segments: int) -> str:
+    text = f"{rows:,} line{'s' if rows != 1 else ''}"
+    if segments != rows:
+        text += f" in {segments:,} segments"
+    return text
+
+
 def _shown(count: int, total: int, step: int, what: str) -> str:
     if count == total:
         return f"{what} (all {total:,})"
@@ -115,6 +151,8 @@ def _shown(count: int, total: int, step: int, what: str) -> str:
 def _draw_scale_bar(ax: Any, length_m: float, limits: tuple[float, float, float, float]) -> None:
     """A scale bar of ``length_m`` in the lower right corner: alternating black and white
     quarters in a white box, the length written above."""
+    from matplotlib.patches import Rectangle
+
     _, x1, y0, y1 = limits
     unit = (y1 - y0) / 100.0  # one hundredth of the map's height
     right = x1 - 6.0 * unit  # room for the label centred on the bar's end
@@ -156,6 +194,12 @@ def render_map_figure(
     max_stations: int = DEFAULT_MAX_STATIONS,
 ) -> Figure:
     """The map of ``plan`` as a ``Figure`` on an Agg canvas (see :func:`render_map_png`)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.collections import LineCollection, PolyCollection
+    from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch, PathPatch
+
     if max_footprints < 0 or max_stations < 0:
         raise InputError(
             f"max_footprints = {max_footprints}, max_stations = {max_stations}: both must be 0 or more"
@@ -269,7 +313,7 @@ def render_map_figure(
             zorder=4,
         )
         handles.append(Line2D([], [], color="#424242", lw=0.8, ls=(0, (4, 3)), label="flight path"))
-    kinds_drawn: dict[PassKind, int] = {}
+    kinds_drawn: dict[PassKind, tuple[int, int]] = {}
     layer = {PassKind.OBLIQUE: 5.0, PassKind.CROSSHATCH: 5.1, PassKind.NADIR: 5.2}
     for p in plan.passes:
         if not p.lines:
@@ -282,18 +326,20 @@ def render_map_figure(
                 cast(Any, segments - (ox, oy)),
                 colors=_PASS_COLOURS[p.kind],
                 linewidths=line_w,
+                capstyle="round",  # a one-photo segment (start = end) shows as a dot
                 zorder=layer[p.kind],
             )
         )
-        kinds_drawn[p.kind] = kinds_drawn.get(p.kind, 0) + len(p.lines)
-    for kind, count in kinds_drawn.items():
+        rows, count = kinds_drawn.get(p.kind, (0, 0))
+        kinds_drawn[p.kind] = (rows + pass_line_count(p), count + len(p.lines))
+    for kind, (rows, count) in kinds_drawn.items():
         handles.append(
             Line2D(
                 [],
                 [],
                 color=_PASS_COLOURS[kind],
                 lw=1.6,
-                label=f"camera on, {kind.value} ({count} lines)",
+                label=f"camera on, {kind.value} ({_lines_text(rows, count)})",
             )
         )
 
@@ -382,6 +428,8 @@ def render_map_figure(
     )
 
     s = plan.summary
+    total_rows = sum(r for r, _ in kinds_drawn.values())
+    total_segments = sum(c for _, c in kinds_drawn.values())
     fig.text(
         left_in / fig_w_in,
         1.0 - 0.2 / fig_h_in,
@@ -395,7 +443,8 @@ def render_map_figure(
         left_in / fig_w_in,
         1.0 - 0.58 / fig_h_in,
         f"GSD {s.gsd_cm:.2f} cm  |  {s.altitude_agl_m:.1f} m above ground  |  "
-        f"{s.line_count:,} lines in {s.pass_count} pass{'es' if s.pass_count != 1 else ''}  |  "
+        f"{_lines_text(total_rows, total_segments)}, "
+        f"{s.pass_count} pass{'es' if s.pass_count != 1 else ''}  |  "
         f"{s.photo_count:,} photos  |  {s.area_m2 / 10_000:,.2f} ha  |  "
         f"{s.flight_distance_m / 1000:,.1f} km, {s.flight_time_s / 60:,.0f} min",
         ha="left",
@@ -434,9 +483,20 @@ def map_png_bytes(
     dpi: int = 130,
 ) -> bytes:
     """The map of ``plan`` as PNG bytes (see :func:`render_map_png`)."""
+    from PIL import Image
+
     fig = render_map_figure(plan, max_footprints=max_footprints, max_stations=max_stations)
+    fig.set_dpi(dpi)
+    fig.patch.set_facecolor("white")
+    fig.canvas.draw()
+    rgba = np.asarray(fig.canvas.buffer_rgba())  # type: ignore[attr-defined]
+    # A map is a few flat colours and their anti-aliased edges: a 256-colour palette keeps
+    # them (no dithering) and encodes 3-4x faster and 4x smaller than 24-bit colour.
+    image = Image.fromarray(np.ascontiguousarray(rgba[..., :3])).quantize(
+        colors=256, method=Image.Quantize.FASTOCTREE, dither=Image.Dither.NONE
+    )
     buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=dpi, facecolor="white")
+    image.save(buffer, format="PNG", compress_level=6)
     return buffer.getvalue()
 
 

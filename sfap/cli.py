@@ -16,7 +16,6 @@ import click
 
 from planner.errors import SfapError
 
-from . import __version__
 
 #: name -> (module in sfap.commands, one-line help). The order is the order of ``sfap --help``.
 COMMANDS: dict[str, tuple[str, str]] = {
@@ -71,8 +70,24 @@ class LazyGroup(click.Group):
             ctx.exit(130)
 
 
+def _print_version(ctx: click.Context, _param: click.Parameter, value: bool) -> None:
+    if not value or ctx.resilient_parsing:
+        return
+    from . import __version__  # importlib.metadata: only when asked
+
+    click.echo(f"sfap, version {__version__}")
+    ctx.exit()
+
+
 @click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
-@click.version_option(__version__, prog_name="sfap")
+@click.option(
+    "--version",
+    is_flag=True,
+    expose_value=False,
+    is_eager=True,
+    callback=_print_version,
+    help="Show the version and exit.",
+)
 @click.option("-v", "--verbose", count=True, help="More log output on stderr (-vv for debug).")
 @click.option("-q", "--quiet", is_flag=True, help="Only errors on stderr.")
 def cli(verbose: int, quiet: bool) -> None:
