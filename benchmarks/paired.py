@@ -24,10 +24,13 @@ import shlex
 import statistics
 import subprocess
 import sys
+import tempfile
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
+
+GNU_TIME = "/usr/bin/time"  # Debian: apt-get install time
 
 
 @dataclass(frozen=True)
@@ -47,22 +50,34 @@ def run_process(
     env: dict[str, str] | None = None,
     stdin: int | None = subprocess.DEVNULL,
 ) -> Sample:
-    """Run ``command`` to its end; its wall time, CPU times and peak RSS. Exits on failure."""
-    start = time.perf_counter()
-    child = subprocess.Popen(
-        list(command), cwd=cwd, env=env, stdin=stdin, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE
-    )
-    assert child.stderr is not None
-    errors = child.stderr.read()
-    _, status, usage = os.wait4(child.pid, 0)
-    wall = time.perf_counter() - start
-    child.returncode = os.waitstatus_to_exitcode(status)
-    child.stderr.close()
-    if child.returncode != 0:
-        sys.exit(
-            f"{shlex.join(command)} failed ({child.returncode}):\n{errors.decode(errors='replace')[-2000:]}"
+    """Run ``command`` to its end; its wall time, CPU times and peak RSS. Exits on failure.
+
+    The peak RSS comes from GNU time (``/usr/bin/time -f %M``) wrapped around the command:
+    a child forked from this (large) Python process would otherwise report this process's
+    size as its own peak, since Linux keeps ``ru_maxrss`` across exec.
+    """
+    with tempfile.NamedTemporaryFile("r", suffix=".rss") as rss_file:
+        wrapped = list(command)
+        if os.path.exists(GNU_TIME):
+            wrapped = [GNU_TIME, "-f", "%M", "-o", rss_file.name, *wrapped]
+        start = time.perf_counter()
+        child = subprocess.Popen(
+            wrapped, cwd=cwd, env=env, stdin=stdin, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE
         )
-    return Sample(wall, usage.ru_utime, usage.ru_stime, usage.ru_maxrss / 1024.0)
+        assert child.stderr is not None
+        errors = child.stderr.read()
+        _, status, usage = os.wait4(child.pid, 0)
+        wall = time.perf_counter() - start
+        child.returncode = os.waitstatus_to_exitcode(status)
+        child.stderr.close()
+        if child.returncode != 0:
+            text = errors.decode(errors="replace")[-2000:]
+            sys.exit(f"{shlex.join(command)} failed ({child.returncode}):\n{text}")
+        try:
+            rss_mib = int(rss_file.read().split()[-1]) / 1024.0
+        except (ValueError, IndexError):
+            rss_mib = float("nan")  # no GNU time: say so rather than report the parent's size
+    return Sample(wall, usage.ru_utime, usage.ru_stime, rss_mib)
 
 
 @dataclass
@@ -180,9 +195,13 @@ def compare(
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--pairs", type=int, default=7)
-    parser.add_argument("commands", nargs="+", help="-- SFAP_COMMAND -- PEER_COMMAND (each one shell word list)")
+    parser.add_argument(
+        "commands", nargs="+", help="-- SFAP_COMMAND -- PEER_COMMAND (each one shell word list)"
+    )
     args = parser.parse_args()
     words = [w for w in args.commands if w != "--"]
     if len(words) != 2:
