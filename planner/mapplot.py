@@ -21,6 +21,7 @@ import itertools
 import logging
 import math
 import os
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, cast
 
@@ -187,6 +188,115 @@ def _draw_scale_bar(ax: Any, length_m: float, limits: tuple[float, float, float,
     ax.text(right, bottom + 1.8 * unit, label, ha="center", va="bottom", fontsize=9, zorder=10)
 
 
+@dataclass(frozen=True)
+class MapFrame:
+    """Where the map sits on the page: its limits in metres from home (x0, x1, y0, y1, at
+    equal scale), the larger data span, and the page layout in inches (map box, margins)."""
+
+    limits: tuple[float, float, float, float]
+    span_m: float
+    map_w_in: float
+    map_h_in: float
+    left_in: float
+    right_in: float
+    top_in: float
+    bottom_in: float
+
+    @property
+    def fig_w_in(self) -> float:
+        return self.left_in + self.map_w_in + self.right_in
+
+    @property
+    def fig_h_in(self) -> float:
+        return self.bottom_in + self.map_h_in + self.top_in
+
+    @property
+    def points_per_m(self) -> float:
+        return self.map_w_in * 72.0 / (self.limits[1] - self.limits[0])
+
+
+def map_frame(plan: SurveyPlan) -> MapFrame:
+    """The extent of everything drawn (area, exclusions, path, footprints, home), padded, and a
+    page shaped like it (within limits): margins for the title lines, the axis labels and
+    caption, and the legend on the right."""
+    ox, oy = plan.home_xy_m
+    st = plan.stations
+    boxes = [plan.area_xy.bounds] if not plan.area_xy.is_empty else []
+    boxes += [z.bounds for z in plan.exclusions_xy if not z.is_empty]
+    xs = [b[0] for b in boxes] + [b[2] for b in boxes] + [ox]
+    ys = [b[1] for b in boxes] + [b[3] for b in boxes] + [oy]
+    if len(plan.path_xy_m):
+        xs += [float(np.min(plan.path_xy_m[:, 0])), float(np.max(plan.path_xy_m[:, 0]))]
+        ys += [float(np.min(plan.path_xy_m[:, 1])), float(np.max(plan.path_xy_m[:, 1]))]
+    if len(st):
+        fp = st.footprint_xy_m
+        xs += [float(np.min(fp[..., 0])), float(np.max(fp[..., 0]))]
+        ys += [float(np.min(fp[..., 1])), float(np.max(fp[..., 1]))]
+    x0, x1 = min(xs) - ox, max(xs) - ox
+    y0, y1 = min(ys) - oy, max(ys) - oy
+    span = max(x1 - x0, y1 - y0, 10.0)
+    pad = 0.06 * span
+    x0, x1, y0, y1 = x0 - pad, x1 + pad, y0 - pad, y1 + pad
+    aspect = (y1 - y0) / max(x1 - x0, 1e-9)
+    map_w_in = 9.0
+    map_h_in = float(np.clip(map_w_in * aspect, 4.5, 12.0))
+    # widen the short side so that the data fill the map box at equal scale
+    box_ratio = map_h_in / map_w_in
+    if (y1 - y0) / (x1 - x0) > box_ratio:
+        grow = ((y1 - y0) / box_ratio - (x1 - x0)) / 2
+        x0, x1 = x0 - grow, x1 + grow
+    else:
+        grow = ((x1 - x0) * box_ratio - (y1 - y0)) / 2
+        y0, y1 = y0 - grow, y1 + grow
+    return MapFrame(
+        limits=(x0, x1, y0, y1),
+        span_m=span,
+        map_w_in=map_w_in,
+        map_h_in=map_h_in,
+        left_in=0.85,
+        right_in=3.4,
+        top_in=1.0,
+        bottom_in=1.0,
+    )
+
+
+def header_text(plan: SurveyPlan) -> str:
+    """The line under the title: GSD, height, lines (counted as the legend counts them)..."""
+    s = plan.summary
+    rows = sum(pass_line_count(p) for p in plan.passes)
+    segments = sum(len(p.lines) for p in plan.passes)
+    return (
+        f"GSD {s.gsd_cm:.2f} cm  |  {s.altitude_agl_m:.1f} m above ground  |  "
+        f"{_lines_text(rows, segments)}, "
+        f"{s.pass_count} pass{'es' if s.pass_count != 1 else ''}  |  "
+        f"{s.photo_count:,} photos  |  {s.area_m2 / 10_000:,.2f} ha  |  "
+        f"{s.flight_distance_m / 1000:,.1f} km, {s.flight_time_s / 60:,.0f} min"
+    )
+
+
+def caption_text(plan: SurveyPlan) -> str:
+    """The grid and the angle between grid north and true north at home."""
+    convergence_deg = plan.frame.true_north_grid_bearing_deg(plan.home.lon_deg, plan.home.lat_deg)
+    epsg = plan.frame.epsg
+    crs_name = f"EPSG:{epsg} ({plan.frame.crs.name})" if epsg else plan.frame.crs.name
+    return (
+        f"Grid: {crs_name}, metres from home. The north arrow points to grid north; "
+        f"true north is {abs(convergence_deg):.2f} deg "
+        f"{'east' if convergence_deg >= 0 else 'west'} of it at home."
+    )
+
+
+def pass_legend_counts(plan: SurveyPlan) -> dict[PassKind, tuple[int, int]]:
+    """Per kind of pass: (lines, camera-on segments), in the order the passes come."""
+    counts: dict[PassKind, tuple[int, int]] = {}
+    for p in plan.passes:
+        if not p.lines:
+            continue
+        rows, segments = counts.get(p.kind, (0, 0))
+        counts[p.kind] = (rows + pass_line_count(p), segments + len(p.lines))
+    return counts
+
+
 def render_map_figure(
     plan: SurveyPlan,
     *,
@@ -208,43 +318,15 @@ def render_map_figure(
     st = plan.stations
     n = len(st)
     kind_of_pass = {p.index: p.kind for p in plan.passes}
-
-    # extent: area, exclusions, path, footprints, home
-    boxes = [plan.area_xy.bounds] if not plan.area_xy.is_empty else []
-    boxes += [z.bounds for z in plan.exclusions_xy if not z.is_empty]
-    xs = [b[0] for b in boxes] + [b[2] for b in boxes] + [ox]
-    ys = [b[1] for b in boxes] + [b[3] for b in boxes] + [oy]
-    if len(plan.path_xy_m):
-        xs += [float(np.min(plan.path_xy_m[:, 0])), float(np.max(plan.path_xy_m[:, 0]))]
-        ys += [float(np.min(plan.path_xy_m[:, 1])), float(np.max(plan.path_xy_m[:, 1]))]
-    if n:
-        fp = st.footprint_xy_m
-        xs += [float(np.min(fp[..., 0])), float(np.max(fp[..., 0]))]
-        ys += [float(np.min(fp[..., 1])), float(np.max(fp[..., 1]))]
-    x0, x1 = min(xs) - ox, max(xs) - ox
-    y0, y1 = min(ys) - oy, max(ys) - oy
-    span = max(x1 - x0, y1 - y0, 10.0)
-    pad = 0.06 * span
-    x0, x1, y0, y1 = x0 - pad, x1 + pad, y0 - pad, y1 + pad
-
-    # a figure shaped like the map (within limits): margins in inches for the title lines,
-    # the axis labels and caption, and the legend on the right
-    aspect = (y1 - y0) / max(x1 - x0, 1e-9)
-    map_w_in = 9.0
-    map_h_in = float(np.clip(map_w_in * aspect, 4.5, 12.0))
-    left_in, right_in, top_in, bottom_in = 0.85, 3.4, 1.0, 1.0
-    fig_w_in, fig_h_in = left_in + map_w_in + right_in, bottom_in + map_h_in + top_in
+    frame = map_frame(plan)
+    x0, x1, y0, y1 = frame.limits
+    span = frame.span_m
+    map_w_in, map_h_in = frame.map_w_in, frame.map_h_in
+    left_in, bottom_in = frame.left_in, frame.bottom_in
+    fig_w_in, fig_h_in = frame.fig_w_in, frame.fig_h_in
     fig = Figure(figsize=(fig_w_in, fig_h_in), dpi=100)
     FigureCanvasAgg(fig)
     ax = fig.add_axes((left_in / fig_w_in, bottom_in / fig_h_in, map_w_in / fig_w_in, map_h_in / fig_h_in))
-    # widen the short side so that the data fill the axes box at equal scale
-    box_ratio = map_h_in / map_w_in
-    if (y1 - y0) / (x1 - x0) > box_ratio:
-        grow = ((y1 - y0) / box_ratio - (x1 - x0)) / 2
-        x0, x1 = x0 - grow, x1 + grow
-    else:
-        grow = ((x1 - x0) * box_ratio - (y1 - y0)) / 2
-        y0, y1 = y0 - grow, y1 + grow
     points_per_m = map_w_in * 72.0 / (x1 - x0)
     ax.set_facecolor("white")
     handles: list[Patch | Line2D] = []
@@ -313,7 +395,6 @@ def render_map_figure(
             zorder=4,
         )
         handles.append(Line2D([], [], color="#424242", lw=0.8, ls=(0, (4, 3)), label="flight path"))
-    kinds_drawn: dict[PassKind, tuple[int, int]] = {}
     layer = {PassKind.OBLIQUE: 5.0, PassKind.CROSSHATCH: 5.1, PassKind.NADIR: 5.2}
     for p in plan.passes:
         if not p.lines:
@@ -330,8 +411,7 @@ def render_map_figure(
                 zorder=layer[p.kind],
             )
         )
-        rows, count = kinds_drawn.get(p.kind, (0, 0))
-        kinds_drawn[p.kind] = (rows + pass_line_count(p), count + len(p.lines))
+    kinds_drawn = pass_legend_counts(plan)
     for kind, (rows, count) in kinds_drawn.items():
         handles.append(
             Line2D(
@@ -427,9 +507,6 @@ def render_map_figure(
         zorder=9,
     )
 
-    s = plan.summary
-    total_rows = sum(r for r, _ in kinds_drawn.values())
-    total_segments = sum(c for _, c in kinds_drawn.values())
     fig.text(
         left_in / fig_w_in,
         1.0 - 0.2 / fig_h_in,
@@ -439,31 +516,8 @@ def render_map_figure(
         fontsize=14,
         fontweight="bold",
     )
-    fig.text(
-        left_in / fig_w_in,
-        1.0 - 0.58 / fig_h_in,
-        f"GSD {s.gsd_cm:.2f} cm  |  {s.altitude_agl_m:.1f} m above ground  |  "
-        f"{_lines_text(total_rows, total_segments)}, "
-        f"{s.pass_count} pass{'es' if s.pass_count != 1 else ''}  |  "
-        f"{s.photo_count:,} photos  |  {s.area_m2 / 10_000:,.2f} ha  |  "
-        f"{s.flight_distance_m / 1000:,.1f} km, {s.flight_time_s / 60:,.0f} min",
-        ha="left",
-        va="top",
-        fontsize=10,
-    )
-    convergence_deg = plan.frame.true_north_grid_bearing_deg(plan.home.lon_deg, plan.home.lat_deg)
-    epsg = plan.frame.epsg
-    crs_name = f"EPSG:{epsg} ({plan.frame.crs.name})" if epsg else plan.frame.crs.name
-    fig.text(
-        left_in / fig_w_in,
-        0.15 / fig_h_in,
-        f"Grid: {crs_name}, metres from home. The north arrow points to grid north; "
-        f"true north is {abs(convergence_deg):.2f} deg "
-        f"{'east' if convergence_deg >= 0 else 'west'} of it at home.",
-        ha="left",
-        fontsize=8,
-        color="#424242",
-    )
+    fig.text(left_in / fig_w_in, 1.0 - 0.58 / fig_h_in, header_text(plan), ha="left", va="top", fontsize=10)
+    fig.text(left_in / fig_w_in, 0.15 / fig_h_in, caption_text(plan), ha="left", fontsize=8, color="#424242")
     ax.legend(
         handles=handles,
         loc="upper left",
@@ -485,16 +539,18 @@ def map_png_bytes(
     """The map of ``plan`` as PNG bytes (see :func:`render_map_png`)."""
     from PIL import Image
 
-    fig = render_map_figure(plan, max_footprints=max_footprints, max_stations=max_stations)
-    fig.set_dpi(dpi)
-    fig.patch.set_facecolor("white")
-    fig.canvas.draw()
-    rgba = np.asarray(fig.canvas.buffer_rgba())  # type: ignore[attr-defined]
+    from .maprender import draw_map
+
+    if max_footprints < 0 or max_stations < 0:
+        raise InputError(
+            f"max_footprints = {max_footprints}, max_stations = {max_stations}: both must be 0 or more"
+        )
+    # Drawn with Pillow (planner/maprender.py): matplotlib's import alone costs more than a
+    # small plan's planning and every other output together.
+    rgb = draw_map(plan, max_footprints=max_footprints, max_stations=max_stations, dpi=dpi)
     # A map is a few flat colours and their anti-aliased edges: a 256-colour palette keeps
     # them (no dithering) and encodes 3-4x faster and 4x smaller than 24-bit colour.
-    image = Image.fromarray(np.ascontiguousarray(rgba[..., :3])).quantize(
-        colors=256, method=Image.Quantize.FASTOCTREE, dither=Image.Dither.NONE
-    )
+    image = rgb.quantize(colors=256, method=Image.Quantize.FASTOCTREE, dither=Image.Dither.NONE)
     buffer = io.BytesIO()
     image.save(buffer, format="PNG", compress_level=6)
     return buffer.getvalue()
