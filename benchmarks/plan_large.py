@@ -126,7 +126,7 @@ def main() -> None:
                 f"{label}: area {r['area_km2']:.1f} km2, {r['photos']:,} photos, {r['items']:,} items; "
                 f"total {r['process_s']:.1f} s as a whole process (imports {r['import_s']:.1f} s, "
                 f"plan {r['plan_s']:.1f} s, write {r['write_s']:.1f} s); "
-                f"peak RSS {r['peak_mb'] / 1.048576:.0f} MiB; load {' '.join(f'{v:.2f}' for v in os.getloadavg())}"
+                f"peak RSS {r['peak_mb']:.0f} MiB; load {' '.join(format(v, '.2f') for v in os.getloadavg())}"
             )
 
 

@@ -127,11 +127,13 @@ def main() -> int:
                 continue
             peer_side = Side(
                 f"drone-flightplan ({case})",
-                [str(args.peer_python), "-m", "drone_flightplan.create_flightplan"]
-                + ["--project_geojson", str(area), "--gsd", str(GSD_CM)]
-                + ["--forward_overlap", str(FORWARD_PCT), "--side_overlap", str(SIDE_PCT)]
-                + ["--drone_type", "DJI_MINI_4_PRO", "--use_centroid_as_take_off_point"]
-                + ["--outfile", str(out_peer)],
+                [
+                    str(args.peer_python),
+                    *("-m", "drone_flightplan.create_flightplan", "--project_geojson", str(area)),
+                    *("--gsd", str(GSD_CM), "--forward_overlap", str(FORWARD_PCT)),
+                    *("--side_overlap", str(SIDE_PCT), "--drone_type", "DJI_MINI_4_PRO"),
+                    *("--use_centroid_as_take_off_point", "--outfile", str(out_peer)),
+                ],
                 before=lambda o=out_peer: shutil.rmtree(o, ignore_errors=True),  # type: ignore[misc]
             )
             result = compare(f"plan {case}", sfap_side, peer_side, pairs=args.pairs)
