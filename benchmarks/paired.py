@@ -201,10 +201,13 @@ def main() -> None:
     )
     parser.add_argument("--pairs", type=int, default=7)
     parser.add_argument(
-        "commands", nargs="+", help="-- SFAP_COMMAND -- PEER_COMMAND (each one shell word list)"
+        "commands",
+        nargs="*",
+        help="-- SFAP_COMMAND -- PEER_COMMAND (each quoted); default: sfap --help against python -c pass",
     )
     args = parser.parse_args()
-    words = [w for w in args.commands if w != "--"]
+    sfap = str(Path(sys.executable).with_name("sfap"))
+    words = [w for w in args.commands if w != "--"] or [f"{sfap} --help", f"{sys.executable} -c pass"]
     if len(words) != 2:
         parser.error("give exactly two commands, each quoted: -- 'sfap --help' -- 'python -c pass'")
     result = compare(
