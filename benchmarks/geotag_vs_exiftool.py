@@ -30,8 +30,10 @@ import io
 import math
 import os
 import shutil
+import statistics
 import sys
 import tempfile
+import time
 from datetime import UTC, datetime
 from pathlib import Path
 
@@ -240,8 +242,56 @@ def main() -> None:
         worst_alt_m = max(worst_alt_m, abs((a.gps_alt_amsl_m or 0.0) - (b.gps_alt_amsl_m or 0.0)))
     print(f"image data identical: sfap {same_sfap}/{len(names)}, exiftool {same_exif}/{len(names)}")
     print(f"largest position difference sfap vs exiftool: {worst_m:.4f} m, altitude {worst_alt_m:.4f} m")
+    in_process(images, out_sfap, names, work)
     if args.keep is None:
         shutil.rmtree(work, ignore_errors=True)
+
+
+def _copy_floor(images: Path, names: list[str], out: Path) -> None:
+    """What cp does for each file: one in-kernel copy of the whole file."""
+    for n in names:
+        with open(images / n, "rb") as src, open(out / n, "wb") as dst:
+            size = os.fstat(src.fileno()).st_size
+            done = 0
+            while done < size:
+                done += os.copy_file_range(src.fileno(), dst.fileno(), size - done, done)
+
+
+def in_process(images: Path, tagged: Path, names: list[str], work: Path, rounds: int = 3) -> None:
+    """Labelled in-process figures: exif.write_geotags (1 and 2 threads) on the same frames and
+    tags as sfap wrote, against a copy loop in the same process (the part exif.py owns, without
+    start-up, log reading and matching)."""
+    jobs = []
+    for n in names:
+        t = exif.read_tags(tagged / n)
+        assert t.gps_lat_deg is not None and t.gps_lon_deg is not None
+        tag = exif.GeoTag(lat_deg=t.gps_lat_deg, lon_deg=t.gps_lon_deg, alt_amsl_m=t.gps_alt_amsl_m)
+        jobs.append((n, tag))
+    timings: dict[str, list[float]] = {}
+    for _ in range(rounds):
+        for label in ("copy loop (floor)", "write_geotags, 1 thread", "write_geotags, 2 threads"):
+            out = work / "in_process"
+            _remover(out)()
+            out.mkdir()
+            start = time.perf_counter()
+            if label.startswith("copy"):
+                _copy_floor(images, names, out)
+            else:
+                exif.write_geotags(
+                    [exif.GeotagJob(src=str(images / n), dst=str(out / n), tag=t) for n, t in jobs],
+                    workers=1 if "1 thread" in label else 2,
+                    atomic=False,
+                )
+            timings.setdefault(label, []).append(time.perf_counter() - start)
+    _remover(work / "in_process")()
+    floor = statistics.median(timings["copy loop (floor)"])
+    print(
+        f"in process (labelled; {rounds} rounds, median; "
+        f"load {' '.join(format(v, '.2f') for v in os.getloadavg())}):"
+    )
+    for label, values in timings.items():
+        median = statistics.median(values)
+        print(f"  {label:<28} {median:7.3f} s  ({median / floor:.2f} x the copy loop)")
 
 
 if __name__ == "__main__":
