@@ -16,7 +16,6 @@ import click
 
 from planner.errors import SfapError
 
-
 #: name -> (module in sfap.commands, one-line help). The order is the order of ``sfap --help``.
 COMMANDS: dict[str, tuple[str, str]] = {
     "plan": ("plan", "Plan a survey mission from a mission spec (TOML)."),
