@@ -867,6 +867,7 @@ def write_geotags(
     if workers < 1:
         raise GeotagError(f"workers is {workers}; give 1 or more")
     _register_namespaces()
+    _umask()  # read (it is set and reset) before any thread creates a file
     results: list[GeotagWriteResult] = []
     if workers == 1 or len(job_list) < 2:
         for n, job in enumerate(job_list, start=1):
