@@ -13,9 +13,12 @@ them, DJI's XMP ``GpsLatitude``, ``GpsLongitude`` (and the misspelt ``GpsLongtit
 firmware), ``AbsoluteAltitude`` and ``RelativeAltitude``: OpenDroneMap and Metashape prefer DJI's
 XMP position over EXIF, so leaving the old ones would undo the geotag (REFERENCES.md section 4).
 
-Writing is lossless: the metadata segments are rewritten by exiv2 (through pyexiv2) in memory and
-the file is replaced atomically; the entropy-coded image data (:func:`compressed_image_data`) is
-byte-identical before and after, which the tests check.
+Writing is lossless and reads each file once: only the header segments (everything before the
+first SOS marker) are read into memory and rewritten by exiv2 (through pyexiv2); the rest of the
+file, the entropy-coded image data (:func:`compressed_image_data`) and anything after it, is
+copied by the kernel (``os.copy_file_range``) and is byte-identical before and after, which the
+tests check. :func:`write_geotags` writes many frames at once. A frame whose image data has no
+end marker (EOI), which decoders still read, is tagged with a warning that names it.
 
 Angles: yaw clockwise from true north, 0-360; pitch and roll in degrees as in Pix4D's camera
 namespace (a level, nadir-looking camera has pitch 0 and roll 0).
@@ -24,10 +27,15 @@ namespace (a level, nadir-looking camera has pitch 0 and roll 0).
 from __future__ import annotations
 
 import calendar
+import contextlib
+import errno
 import logging
 import math
 import os
 import re
+import tempfile
+from collections.abc import Callable, Iterable
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from fractions import Fraction
@@ -36,7 +44,7 @@ from typing import Any
 
 import pyexiv2
 
-from planner.outputs import atomic_write_bytes
+from planner.errors import OutputExistsError
 
 from .errors import GeotagError
 
@@ -624,12 +632,105 @@ def _xmp_coordinate(value_deg: float, positive: str, negative: str) -> str:
     return f"{degrees},{minutes:.8f}{positive if value_deg >= 0 else negative}"
 
 
-def geotag_bytes(data: bytes, tag: GeoTag, *, name: str = "<bytes>") -> bytes:
-    """The JPEG ``data`` with ``tag`` written into its EXIF and XMP; image data untouched."""
+# The file is handled in two parts. The header (every segment before the first SOS marker: APP1
+# EXIF, APP1 XMP, quantisation and Huffman tables...) is what exiv2 rewrites; it is a few KiB to a
+# few hundred KiB. Everything from the first SOS marker to the end of the file (the scans, EOI and
+# any trailer such as a DJI preview) is copied by the kernel without entering Python
+# (os.copy_file_range), so a 40 MB frame costs what its header costs plus a page-cache copy.
+# exiv2 itself copies everything from SOS on verbatim when it writes a JPEG, so giving it the
+# header and a stub scan ("SOS header, one byte, EOI") yields the same header bytes as giving it
+# the whole file; the stub's tail is checked to come back unchanged.
+
+_HEADER_CHUNK = 1 << 16
+_STUB_SCAN = b"\x00\xff\xd9"
+
+
+@dataclass(frozen=True)
+class _Split:
+    """A JPEG's header (bytes before the first SOS) and where the image data starts."""
+
+    header: bytes  # data[:sos]
+    sos_segment: bytes  # the SOS marker segment itself (marker, length, component table)
+    sos_offset: int
+    size: int
+
+
+def _split_header(read_at: Any, size: int, name: str) -> _Split:
+    """Find the first SOS marker by walking the header segments; ``read_at(offset, n)`` reads."""
+    buffer = bytearray(read_at(0, min(size, _HEADER_CHUNK)))
+
+    def need(end: int) -> None:
+        if end > len(buffer) and len(buffer) < size:
+            buffer.extend(
+                read_at(len(buffer), min(size, max(end, len(buffer) + _HEADER_CHUNK)) - len(buffer))
+            )
+
+    if not buffer.startswith(b"\xff\xd8"):
+        raise GeotagError(f"{name}: not a JPEG file (no SOI marker); remove it from the folder")
+    pos = 2
+    while True:
+        need(pos + 4)
+        while pos + 1 < len(buffer) and buffer[pos] == 0xFF and buffer[pos + 1] == 0xFF:
+            pos += 1  # fill bytes
+            need(pos + 4)
+        if pos + 4 > len(buffer) or buffer[pos] != 0xFF:
+            raise GeotagError(
+                f"{name}: JPEG structure broken at byte {pos} before the image data; "
+                f"the file is damaged, replace it from the card"
+            )
+        marker = buffer[pos + 1]
+        if marker in _STANDALONE_MARKERS:
+            pos += 2
+            continue
+        if marker == 0xD9:
+            raise GeotagError(f"{name}: JPEG ends (EOI) before any image data; the file is damaged")
+        length = int.from_bytes(buffer[pos + 2 : pos + 4], "big")
+        if length < 2:
+            raise GeotagError(f"{name}: JPEG segment at byte {pos} has length {length}; the file is damaged")
+        if marker == 0xDA:
+            need(pos + 2 + length)
+            if pos + 2 + length > len(buffer):
+                raise GeotagError(f"{name}: JPEG truncated in its scan header at byte {pos}")
+            return _Split(
+                header=bytes(buffer[:pos]),
+                sos_segment=bytes(buffer[pos : pos + 2 + length]),
+                sos_offset=pos,
+                size=size,
+            )
+        pos += 2 + length
+
+
+def _split_bytes(data: bytes, name: str) -> _Split:
+    return _split_header(lambda offset, n: data[offset : offset + n], len(data), name)
+
+
+def _compose_header(split: _Split, name: str, change: Any) -> bytes:
+    """Run ``change(image, exif, xmp)`` on the header through exiv2; the new header bytes.
+
+    ``change`` gets the pyexiv2 image of the header plus a stub scan and the EXIF and XMP
+    key -> value maps it carries, and makes its modifications.
+    """
     _register_namespaces()
-    image = _open(data, name)
+    stub_tail = split.sos_segment + _STUB_SCAN
+    image = _open(split.header + stub_tail, name)
     try:
         exif, xmp = _read_maps(image, name)
+        try:
+            change(image, exif, xmp)
+        except (RuntimeError, ValueError) as error:
+            raise GeotagError(f"{name}: tags cannot be written ({error})") from error
+        composed: bytes = image.get_bytes()
+    finally:
+        image.close()
+    out = _split_bytes(composed, name)
+    # exiv2 copies everything from SOS on verbatim: anything else means it touched the image data.
+    if composed[out.sos_offset :] != stub_tail:
+        raise GeotagError(f"{name}: writing the tags would change the image data; file left as it was")
+    return out.header
+
+
+def _geotag_change(tag: GeoTag) -> Any:
+    def change(image: pyexiv2.ImageData, exif: dict[str, Any], xmp: dict[str, Any]) -> None:
         exif_values = _exif_gps_values(tag)
         # Everything else in the GPS IFD (speed, track, DOP, status...) described the old fix.
         for key in exif:
@@ -637,17 +738,141 @@ def geotag_bytes(data: bytes, tag: GeoTag, *, name: str = "<bytes>") -> bytes:
                 exif_values[key] = None
         # Deleting an absent tag is not an error worth a call into exiv2.
         exif_values = {k: v for k, v in exif_values.items() if v is not None or k in exif}
+        image.modify_exif(exif_values)
+        xmp_values = _xmp_values(tag, xmp)
+        if xmp_values:
+            image.modify_xmp(xmp_values)
+
+    return change
+
+
+def _strip_change(attitude: bool) -> Any:
+    def change(image: pyexiv2.ImageData, exif: dict[str, Any], xmp: dict[str, Any]) -> None:
+        gps_keys = {key: None for key in exif if key.startswith("Exif.GPSInfo.")}
+        if gps_keys:
+            image.modify_exif(gps_keys)
+        xmp_keys = [k for k in _DJI_POSITION_KEYS if k in xmp]
+        if attitude:
+            xmp_keys += [k for k in _PIX4D_KEYS if k in xmp]
+        if xmp_keys:
+            image.modify_xmp(dict.fromkeys(xmp_keys))
+
+    return change
+
+
+def geotag_bytes(data: bytes, tag: GeoTag, *, name: str = "<bytes>") -> bytes:
+    """The JPEG ``data`` with ``tag`` written into its EXIF and XMP; image data untouched."""
+    split = _split_bytes(data, name)
+    return _compose_header(split, name, _geotag_change(tag)) + data[split.sos_offset :]
+
+
+def _copy_range(src_fd: int, dst_fd: int, offset: int, count: int) -> None:
+    """Copy ``count`` bytes of ``src_fd`` from ``offset`` to ``dst_fd``'s position, in the kernel."""
+    copy_file_range = getattr(os, "copy_file_range", None)
+    while count > 0:
         try:
-            image.modify_exif(exif_values)
-            xmp_values = _xmp_values(tag, xmp)
-            if xmp_values:
-                image.modify_xmp(xmp_values)
-            result: bytes = image.get_bytes()
-        except (RuntimeError, ValueError) as error:
-            raise GeotagError(f"{name}: tags cannot be written ({error})") from error
-    finally:
-        image.close()
-    return result
+            if copy_file_range is not None:
+                done = copy_file_range(src_fd, dst_fd, count, offset)
+            else:  # pragma: no cover - Python < 3.8 or not Linux
+                done = os.sendfile(dst_fd, src_fd, offset, count)
+        except OSError as error:
+            if error.errno not in (errno.EXDEV, errno.ENOSYS, errno.EINVAL, errno.EOPNOTSUPP):
+                raise
+            # Filesystems (or kernels) that refuse an in-kernel copy between these two files.
+            copy_file_range = None
+            done = os.sendfile(dst_fd, src_fd, offset, count)
+        if done == 0:
+            raise GeotagError(f"the source file shrank while it was copied ({count} bytes missing)")
+        offset += done
+        count -= done
+
+
+def _has_eoi(fd: int, split: _Split, name: str) -> bool:
+    """True when the image data ends with an EOI marker.
+
+    The common case costs one 2-byte read: the file ends with EOI. Otherwise (a trailer after EOI
+    such as a DJI preview, padding, or a damaged end) the scans are walked to find out.
+    """
+    if os.pread(fd, 2, split.size - 2) == b"\xff\xd9":
+        return True
+    data = os.pread(fd, split.size, 0)
+    try:
+        compressed_image_data(data)
+    except GeotagError:
+        return False
+    return True
+
+
+def _write_file(
+    src: str | os.PathLike[str],
+    dst: str | os.PathLike[str],
+    change: Any,
+    *,
+    overwrite: bool,
+    atomic: bool,
+    check_end: bool = True,
+) -> tuple[Path, list[str]]:
+    """``src`` with its header changed by ``change`` written to ``dst``; (path, warnings)."""
+    name = str(src)
+    warnings: list[str] = []
+    same = os.path.abspath(src) == os.path.abspath(dst)
+    target = Path(dst)
+    with open(src, "rb") as source:
+        fd = source.fileno()
+        size = os.fstat(fd).st_size
+        split = _split_header(lambda offset, n: os.pread(fd, n, offset), size, name)
+        header = _compose_header(split, name, change)
+        if check_end and not _has_eoi(fd, split, name):
+            warnings.append(
+                f"{name}: the image data has no end marker (EOI): the file was cut short or "
+                f"damaged on the card; decoders still read it, tags written, image data copied "
+                f"unchanged"
+            )
+        if atomic or same:
+            if not (overwrite or same) and target.exists():
+                raise OutputExistsError(f"{target} exists; pass --overwrite to replace it")
+            target.parent.mkdir(parents=True, exist_ok=True)
+            out_fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+            try:
+                with os.fdopen(out_fd, "wb", buffering=0) as out:
+                    out.write(header)
+                    _copy_range(fd, out.fileno(), split.sos_offset, size - split.sos_offset)
+                    os.fsync(out.fileno())
+                os.chmod(tmp_name, 0o666 & ~_umask())
+                os.replace(tmp_name, target)
+            except BaseException:
+                with contextlib.suppress(FileNotFoundError):
+                    os.unlink(tmp_name)
+                raise
+        else:
+            created = False
+            try:
+                with target.open("wb" if overwrite else "xb", buffering=0) as out:
+                    created = True
+                    out.write(header)
+                    _copy_range(fd, out.fileno(), split.sos_offset, size - split.sos_offset)
+            except FileExistsError as error:
+                raise OutputExistsError(f"{target} exists; pass --overwrite to replace it") from error
+            except BaseException:
+                if created:
+                    with contextlib.suppress(FileNotFoundError):
+                        target.unlink()
+                raise
+    for text in warnings:
+        log.warning("%s", text)
+    return target, warnings
+
+
+_UMASK: int | None = None
+
+
+def _umask() -> int:
+    global _UMASK
+    if _UMASK is None:
+        mask = os.umask(0)
+        os.umask(mask)
+        _UMASK = mask
+    return _UMASK
 
 
 def write_geotag(
@@ -661,23 +886,90 @@ def write_geotag(
 ) -> Path:
     """Write ``src`` with ``tag`` to ``dst`` (``dst`` may equal ``src``: in place).
 
-    With ``check_image_data`` the compressed image data of the result is compared with the
-    source's before anything is written; a difference raises :class:`GeotagError`. With
-    ``atomic`` (always for in-place writes) the file goes through a synced temporary file and
-    a rename; without, it is written directly, for a caller that stages a whole folder and
+    ``src`` is read once: its header segments (up to the first SOS marker) are rewritten with
+    the new tags and the rest of the file, image data and any trailer, is copied byte for byte
+    by the kernel. A file whose image data has no end marker (EOI; cut short on the card) is
+    still tagged, with a logged warning that names it (:func:`write_geotags` returns it).
+
+    ``check_image_data`` is kept for compatibility: the image data is never re-encoded or
+    passed through exiv2, and exiv2's handling of the scan it is given is always checked.
+    With ``atomic`` (always for in-place writes) the file goes through a synced temporary file
+    and a rename; without, it is written directly, for a caller that stages a whole folder and
     moves it into place at once (:func:`planner.outputs.staged_output_dir`).
     """
-    data = Path(src).read_bytes()
-    tagged = geotag_bytes(data, tag, name=str(src))
-    if check_image_data and compressed_image_data(tagged) != compressed_image_data(data):
-        raise GeotagError(f"{src}: writing the tags would change the image data; file left as it was")
-    same = os.path.abspath(src) == os.path.abspath(dst)
-    if atomic or same:
-        return atomic_write_bytes(dst, tagged, overwrite=overwrite or same)
-    target = Path(dst)
-    with target.open("wb" if overwrite else "xb") as handle:
-        handle.write(tagged)
-    return target
+    del check_image_data
+    path, _ = _write_file(src, dst, _geotag_change(tag), overwrite=overwrite, atomic=atomic)
+    return path
+
+
+@dataclass(frozen=True, kw_only=True)
+class GeotagJob:
+    """One frame to write: ``src`` with ``tag`` to ``dst`` (``dst`` may equal ``src``)."""
+
+    src: str
+    dst: str
+    tag: GeoTag
+
+
+@dataclass(frozen=True, kw_only=True)
+class GeotagWriteResult:
+    """What became of one :class:`GeotagJob`: ``error`` (None when written, else the message,
+    which names the file) and ``warnings`` (e.g. a missing end marker)."""
+
+    src: str
+    dst: str
+    error: str | None = None
+    warnings: tuple[str, ...] = ()
+
+    @property
+    def written(self) -> bool:
+        return self.error is None
+
+
+def _run_job(job: GeotagJob, overwrite: bool, atomic: bool) -> GeotagWriteResult:
+    try:
+        _, warnings = _write_file(
+            job.src, job.dst, _geotag_change(job.tag), overwrite=overwrite, atomic=atomic
+        )
+    except (GeotagError, OSError) as error:
+        return GeotagWriteResult(src=job.src, dst=job.dst, error=str(error))
+    return GeotagWriteResult(src=job.src, dst=job.dst, warnings=tuple(warnings))
+
+
+def write_geotags(
+    jobs: Iterable[GeotagJob],
+    *,
+    workers: int | None = None,
+    overwrite: bool = False,
+    atomic: bool = True,
+    progress: Callable[[int], None] | None = None,
+) -> list[GeotagWriteResult]:
+    """Write many frames, ``workers`` at a time (default: the CPUs this process may use, at most 4).
+
+    A frame that cannot be written does not stop the others: its result carries the error.
+    Results come back in the order of ``jobs``; ``progress(n)`` is called with the number done.
+    Threads suffice: the copy runs in the kernel without the GIL, and exiv2's share is small.
+    """
+    job_list = list(jobs)
+    if workers is None:
+        workers = min(4, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else 1)
+    if workers < 1:
+        raise GeotagError(f"workers is {workers}; give 1 or more")
+    _register_namespaces()
+    _umask()  # read (it is set and reset) before any thread creates a file
+    results: list[GeotagWriteResult] = []
+    if workers == 1 or len(job_list) < 2:
+        for n, job in enumerate(job_list, start=1):
+            results.append(_run_job(job, overwrite, atomic))
+            if progress is not None:
+                progress(n)
+        return results
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        for n, result in enumerate(pool.map(lambda j: _run_job(j, overwrite, atomic), job_list), start=1):
+            results.append(result)
+            if progress is not None:
+                progress(n)
+    return results
 
 
 def strip_gps(
@@ -691,23 +983,8 @@ def strip_gps(
 
     With ``attitude`` the Pix4D XMP camera attitude and accuracy tags go too. Image data untouched.
     """
-    _register_namespaces()
-    data = Path(src).read_bytes()
-    image = _open(data, src)
-    try:
-        exif, xmp = _read_maps(image, src)
-        gps_keys = {key: None for key in exif if key.startswith("Exif.GPSInfo.")}
-        if gps_keys:
-            image.modify_exif(gps_keys)
-        xmp_keys = [k for k in _DJI_POSITION_KEYS if k in xmp]
-        if attitude:
-            xmp_keys += [k for k in _PIX4D_KEYS if k in xmp]
-        if xmp_keys:
-            image.modify_xmp(dict.fromkeys(xmp_keys))
-        stripped: bytes = image.get_bytes()
-    finally:
-        image.close()
-    return atomic_write_bytes(dst, stripped, overwrite=overwrite)
+    path, _ = _write_file(src, dst, _strip_change(attitude), overwrite=overwrite, atomic=True)
+    return path
 
 
 # --------------------------------------------------------------------------------------------

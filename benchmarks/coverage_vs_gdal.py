@@ -6,19 +6,23 @@ pitch / roll by 2 deg so the footprints are not axis-aligned rectangles; footpri
 ``processing.footprints.project_footprints`` (20 vertices each, timed and printed too) and written
 as GeoJSON (coordinates written with repr, so GDAL reads the same doubles).
 
-Timed once each:
+Timed as whole processes in alternating pairs (benchmarks/paired.py), both reading the same
+GeoJSON file and writing an uncompressed UInt16 GeoTIFF:
 
-- sfap: ``processing.coverage.count_raster`` in this process, and the same plus writing the
-  GeoTIFF uncompressed (what gdal_rasterize does);
+- sfap: ``python -c`` reading footprints.geojson (json), ``processing.coverage.count_raster``,
+  ``write_geotiff``: start-up and imports included;
 - gdal: ``gdal_rasterize -add -burn 1 -init 0 -ot UInt16 -te ... -tr 0.25 0.25 footprints.geojson
-  out.tif`` as a fresh process (includes its start-up and reading the GeoJSON).
+  out.tif``.
 
-Checked: the count rasters are identical, cell by cell. Memory: tracemalloc's peak during
-``count_raster`` (numpy reports its buffers to tracemalloc) against the raster's own size, and
-the maximum resident set size of both fresh processes (GNU time, /usr/bin/time).
+Beside them, labelled as in-process: ``count_raster`` alone and with the GeoTIFF write, and
+tracemalloc's peak during ``count_raster``. Memory that counts is each process's peak resident set
+size (GNU time, /usr/bin/time), given against the raster's own size.
 
-Run: .venv/bin/python benchmarks/coverage_vs_gdal.py [--frames-per-line 100] [--lines 50]
-     (needs gdal_rasterize: apt-get install gdal-bin)
+Checked: the count rasters of both processes are identical, cell by cell, with the same
+geotransform.
+
+Run: .venv/bin/python benchmarks/coverage_vs_gdal.py [--frames-per-line 100] [--lines 50] [--pairs 5]
+     (needs gdal_rasterize: apt-get install gdal-bin; /usr/bin/time: apt-get install time)
 """
 
 from __future__ import annotations
@@ -44,6 +48,9 @@ from processing.footprints import project_footprints
 from processing.frames import AltitudeReference, AttitudeSource, Frames
 from processing.ground import FlatGround
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from paired import Side, compare, machine
+
 CAMERA = Camera(
     id="dji-phantom-4-pro",
     name="DJI Phantom 4 Pro",
@@ -55,10 +62,19 @@ CAMERA = Camera(
 )
 SIDE_M = 1414.0
 CELL_M = 0.25
-#: GNU time prints the command's own maximum resident set size (KiB) on stderr. A child spawned
-#: straight from this (large) Python process would report this process's size instead: the
-#: kernel records the address space a child had before its exec.
-TIME = ["/usr/bin/time", "-f", "%M"]
+#: sfap's side: the library, reading the same GeoJSON as gdal_rasterize.
+SFAP_SCRIPT = """
+import json, sys
+import numpy as np
+from pyproj import CRS
+from processing.coverage import Grid, count_raster, write_geotiff
+west, north, cell, rows, cols, epsg = json.loads(sys.argv[3])
+with open(sys.argv[1]) as handle:
+    features = json.load(handle)["features"]
+rings = np.array([f["geometry"]["coordinates"][0][:-1] for f in features], dtype=np.float64)
+grid = Grid(west_m=west, north_m=north, cell_m=cell, rows=rows, cols=cols, crs=CRS.from_epsg(epsg))
+write_geotiff(sys.argv[2], count_raster(rings, grid), grid, compress=None)
+"""
 HEIGHT_M = 100.0
 WEST_M, SOUTH_M = 500_000.0, 4_400_000.0
 
@@ -109,6 +125,7 @@ def main() -> int:
     )
     parser.add_argument("--lines", type=int, default=50)
     parser.add_argument("--frames-per-line", type=int, default=100)
+    parser.add_argument("--pairs", type=int, default=5)
     args = parser.parse_args()
     gdal = shutil.which("gdal_rasterize")
     if gdal is None:
@@ -131,21 +148,27 @@ def main() -> int:
         vector = work / "footprints.geojson"
         write_geojson(vector, footprints.xy_m, epsg)
 
-        # The peer first, so the children's maximum resident set size is its own.
-        out = work / "gdal.tif"
+        gdal_out, sfap_out = work / "gdal.tif", work / "sfap_process.tif"
         xmin, ymin, xmax, ymax = grid.bounds
         command = [
             gdal, "-q", "-add", "-burn", "1", "-init", "0", "-ot", "UInt16",
             "-te", repr(xmin), repr(ymin), repr(xmax), repr(ymax),
-            "-tr", repr(CELL_M), repr(CELL_M), str(vector), str(out),
+            "-tr", repr(CELL_M), repr(CELL_M), str(vector), str(gdal_out),
         ]  # fmt: skip
-        start = time.perf_counter()
-        gdal_run = subprocess.run(TIME + command, check=True, capture_output=True, text=True)
-        gdal_s = time.perf_counter() - start
-        gdal_rss_kib = int(gdal_run.stderr.split()[-1])
-        with rasterio.open(out) as dataset:
+        grid_args = json.dumps([grid.west_m, grid.north_m, grid.cell_m, grid.rows, grid.cols, epsg])
+        sfap_side = Side(
+            "sfap (python -c, GeoJSON in)",
+            [sys.executable, "-c", SFAP_SCRIPT, str(vector), str(sfap_out), grid_args],
+            before=lambda: sfap_out.unlink(missing_ok=True),
+        )
+        gdal_side = Side("gdal_rasterize", command, before=lambda: gdal_out.unlink(missing_ok=True))
+        result = compare("coverage raster, process against process", sfap_side, gdal_side, pairs=args.pairs)
+        with rasterio.open(gdal_out) as dataset:
             peer = dataset.read(1)
             same_transform = tuple(dataset.transform)[:6] == tuple(grid.transform)[:6]
+        with rasterio.open(sfap_out) as dataset:
+            fresh_identical = bool(np.array_equal(dataset.read(1), peer))
+            same_transform = same_transform and tuple(dataset.transform)[:6] == tuple(grid.transform)[:6]
 
         tracemalloc.start()
         start = time.perf_counter()
@@ -157,25 +180,6 @@ def main() -> int:
         write_geotiff(work / "sfap.tif", counts, grid, compress=None)
         sfap_write_s = time.perf_counter() - start
 
-        # sfap as a fresh process, like the peer: start-up, imports, reading the footprints.
-        np.save(work / "footprints.npy", footprints.xy_m)
-        script = (
-            "import sys, numpy as np; from pyproj import CRS; "
-            "from processing.coverage import Grid, count_raster, write_geotiff; "
-            f"g = Grid(west_m={grid.west_m!r}, north_m={grid.north_m!r}, cell_m={grid.cell_m!r}, "
-            f"rows={grid.rows}, cols={grid.cols}, crs=CRS.from_epsg({epsg})); "
-            "c = count_raster(np.load(sys.argv[1]), g); write_geotiff(sys.argv[2], c, g, compress=None)"
-        )
-        start = time.perf_counter()
-        child = subprocess.run(
-            [*TIME, sys.executable, "-c", script, str(work / "footprints.npy"), str(work / "fresh.tif")],
-            check=True, capture_output=True, text=True,
-        )  # fmt: skip
-        fresh_s = time.perf_counter() - start
-        fresh_rss_kib = int(child.stderr.split()[-1])
-        with rasterio.open(work / "fresh.tif") as dataset:
-            fresh_identical = bool(np.array_equal(dataset.read(1), peer))
-
     identical = peer.shape == counts.shape and bool(np.array_equal(peer, counts)) and fresh_identical
     differing = int(np.count_nonzero(peer != counts)) if peer.shape == counts.shape else -1
     cells_m = grid.rows * grid.cols / 1e6
@@ -186,23 +190,16 @@ def main() -> int:
     vertices = footprints.xy_m.shape[1]
     print(f"footprints: project_footprints {project_s * 1000:.0f} ms ({vertices} vertices each)")
     print(f"views per cell: median {np.median(counts):.0f}, max {counts.max()}")
+    print(machine())
+    print(version)
+    print(result.report())
+    for side in (result.sfap, result.peer):
+        rss = max(x.max_rss_mib for x in side.samples)
+        print(f"  {side.label}: peak RSS {rss:.1f} MiB = {rss * 2**20 / raster_bytes:.2f} x the raster")
     print(
-        f"sfap count_raster (in process): {sfap_s:.3f} s, peak traced memory "
+        f"in process (labelled: no start-up, no reading): count_raster {sfap_s:.3f} s, "
+        f"+ GeoTIFF write {sfap_s + sfap_write_s:.3f} s; tracemalloc peak "
         f"{sfap_peak / 2**20:.1f} MiB = {sfap_peak / raster_bytes:.2f} x the raster"
-    )
-    print(
-        f"sfap count_raster + GeoTIFF:    {sfap_s + sfap_write_s:.3f} s "
-        f"(uncompressed GeoTIFF write {sfap_write_s:.3f} s)"
-    )
-    print(
-        f"sfap fresh process (start-up, load, count, GeoTIFF): {fresh_s:.3f} s, "
-        f"max RSS {fresh_rss_kib / 1024:.1f} MiB"
-    )
-    print(f"{version}: gdal_rasterize -add: {gdal_s:.3f} s, max RSS {gdal_rss_kib / 1024:.1f} MiB")
-    print(
-        f"ratio gdal / sfap: {gdal_s / sfap_s:.1f} x (count only), "
-        f"{gdal_s / (sfap_s + sfap_write_s):.1f} x (count + GeoTIFF), "
-        f"{gdal_s / fresh_s:.1f} x (fresh process)"
     )
     print(f"counts identical: {identical} ({differing} cells differ); same geotransform: {same_transform}")
     print("command: " + " ".join(command))

@@ -1,17 +1,26 @@
-"""Geotag 1000 frames with `sfap geotag` and with `exiftool -geotag` on the same images and track.
+"""Geotag frames with `sfap geotag`, with `exiftool -geotag`, and copy them with `cp -r` (the floor).
 
-Setup (not timed): one small real JPEG (a 640 x 480 reduction of a garfield frame, or noise when
-the data are absent) copied 1000 times with capture times 2 s apart; a 5 Hz position track of
-a lawnmower survey over those 2000 s, written as an exiftool CSV track. Then, each timed once,
-each as the command a user would run (a fresh process, the time includes start-up):
+Setup (not timed): a base frame made from a real Parrot Sequoia frame (../shared/data/garfield_rgb:
+its EXIF with GPS, maker data and Pix4D XMP kept), re-encoded at the size of the chosen set, then
+copied COUNT times, each copy with its own capture time (2 s apart); a 5 Hz position track of a
+lawnmower survey over that time, as an exiftool CSV track. The sets:
 
-- ``sfap geotag IN --log track.csv -o OUT_SFAP --offset-s 0 --no-progress``
-- ``exiftool -geotag track.csv '-Geotime<${SubSecDateTimeOriginal}+00:00' -o OUT_EXIF/ IN``
+- ``small``: 1000 x 640 x 480 px (about 70 KB)
+- ``1mb``: 1000 x 2736 x 1824 px, quality 90 (about 1.1 MB)
+- ``full``: 300 x 4608 x 3456 px, quality 92 (about 3.0 MB, the Sequoia's own size)
+- ``raw``: 20 x 8192 x 6144 px with sensor-like noise, quality 95 (about 23 MB)
 
-Checked: every output's compressed image data equals its input's (pixels identical) for both
-tools, and the positions written by the two agree (largest difference, metres).
+Timed, each as the whole process a user runs (start-up included), in alternating pairs
+(benchmarks/paired.py), into a fresh output folder each time:
 
-Run: .venv/bin/python benchmarks/geotag_vs_exiftool.py [--count 1000] [--keep DIR]
+- ``sfap geotag IN --log track.csv -o OUT --offset-s 0 --no-progress``
+- ``exiftool -q -geotag track.csv '-Geotime<${SubSecDateTimeOriginal}+00:00' -o OUT/ IN``
+- ``cp -r IN OUT``
+
+Checked after the runs: every output's compressed image data (SOS to EOI) equals its input's, for
+both tools, and the positions the two tools wrote agree (largest difference, metres).
+
+Run: .venv/bin/python benchmarks/geotag_vs_exiftool.py --set full [--pairs 5] [--count N] [--keep DIR]
 """
 
 from __future__ import annotations
@@ -19,8 +28,9 @@ from __future__ import annotations
 import argparse
 import io
 import math
+import os
 import shutil
-import subprocess
+import statistics
 import sys
 import tempfile
 import time
@@ -30,6 +40,11 @@ from pathlib import Path
 import numpy as np
 import pyexiv2
 from PIL import Image
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from paired import Side, compare, machine
 
 from acquisition import exif
 from planner.geo import LocalFrame, geodesic_distance_m
@@ -44,37 +59,74 @@ GARFIELD = (
 START_S = 1_700_000_000.0
 INTERVAL_S = 2.0
 
+#: name -> (count, width px, height px, JPEG quality, noise amplitude)
+SETS = {
+    "small": (1000, 640, 480, 85, 0),
+    "1mb": (1000, 2736, 1824, 90, 0),
+    "full": (300, 4608, 3456, 92, 0),
+    "raw": (20, 8192, 6144, 95, 12),
+}
 
-def base_jpeg() -> bytes:
-    if GARFIELD.exists():
-        image = Image.open(GARFIELD).convert("RGB").resize((640, 480))
-    else:
-        pixels = np.random.default_rng(0).integers(0, 256, size=(480, 640, 3), dtype=np.uint8)
-        image = Image.fromarray(pixels)
+
+def _header_and_scan(data: bytes) -> tuple[bytes, bytes]:
+    """(everything before the first SOS marker, the rest) of a JPEG."""
+    pos = 2
+    while True:
+        marker = data[pos + 1]
+        if marker == 0xDA:
+            return data[:pos], data[pos:]
+        pos += 2 + int.from_bytes(data[pos + 2 : pos + 4], "big")
+
+
+def base_frame(width: int, height: int, quality: int, noise: int) -> bytes:
+    """The Sequoia frame's pixels at ``width`` x ``height``, with its own metadata segments."""
+    original = GARFIELD.read_bytes()
+    image = Image.open(io.BytesIO(original)).convert("RGB")
+    if image.size != (width, height):
+        image = image.resize((width, height))
+    if noise:
+        pixels = np.asarray(image).astype(np.int16)
+        pixels += np.random.default_rng(0).integers(-noise, noise + 1, size=pixels.shape, dtype=np.int16)
+        image = Image.fromarray(np.clip(pixels, 0, 255).astype(np.uint8))
     buffer = io.BytesIO()
-    image.save(buffer, format="JPEG", quality=85)
-    return buffer.getvalue()
+    image.save(buffer, format="JPEG", quality=quality)
+    header, _ = _header_and_scan(original)
+    new_header, scan = _header_and_scan(buffer.getvalue())
+    # the Sequoia's APP1 segments (EXIF, XMP), then the new encoding's tables and scan
+    app_segments = header[2:]
+    pos, kept = 2, []
+    while pos < len(new_header):
+        length = int.from_bytes(new_header[pos + 2 : pos + 4], "big")
+        if not 0xE0 <= new_header[pos + 1] <= 0xEF:
+            kept.append(new_header[pos : pos + 2 + length])
+        pos += 2 + length
+    data = b"\xff\xd8" + app_segments + b"".join(kept) + scan
+    stub = pyexiv2.ImageData(data[: len(data) - len(scan)] + scan[:14] + b"\x00\xff\xd9")
+    stub.modify_exif({"Exif.Photo.PixelXDimension": str(width), "Exif.Photo.PixelYDimension": str(height)})
+    fixed, _ = _header_and_scan(stub.get_bytes())
+    stub.close()
+    return fixed + scan
 
 
-def make_images(folder: Path, count: int) -> None:
-    data = base_jpeg()
+def make_images(folder: Path, count: int, data: bytes) -> None:
+    """``count`` copies of ``data``, capture times 2 s apart (only the header is rewritten)."""
+    header, scan = _header_and_scan(data)
     folder.mkdir(parents=True)
     for k in range(count):
         t = START_S + INTERVAL_S * k + 0.137
         whole = math.floor(t)
-        image = pyexiv2.ImageData(data)
+        image = pyexiv2.ImageData(header + scan[:14] + b"\x00\xff\xd9")
         image.modify_exif(
             {
-                "Exif.Image.Make": "Bench",
-                "Exif.Image.Model": "B1",
                 "Exif.Photo.DateTimeOriginal": datetime.fromtimestamp(whole, tz=UTC).strftime(
                     "%Y:%m:%d %H:%M:%S"
                 ),
                 "Exif.Photo.SubSecTimeOriginal": f"{round((t - whole) * 1000):03d}",
             }
         )
-        (folder / f"IMG_{k:05d}.JPG").write_bytes(image.get_bytes())
+        new_header, _ = _header_and_scan(image.get_bytes())
         image.close()
+        (folder / f"IMG_{k:05d}.JPG").write_bytes(new_header + scan)
 
 
 def make_track(path: Path, count: int) -> None:
@@ -98,36 +150,42 @@ def make_track(path: Path, count: int) -> None:
     path.write_text("\n".join(lines) + "\n")
 
 
-def timed(command: list[str]) -> float:
-    start = time.perf_counter()
-    done = subprocess.run(command, capture_output=True, text=True)
-    elapsed = time.perf_counter() - start
-    if done.returncode != 0:
-        sys.exit(f"{command[0]} failed ({done.returncode}):\n{done.stderr[-2000:]}")
-    return elapsed
+def _remover(folder: Path):  # type: ignore[no-untyped-def]
+    def remove() -> None:
+        shutil.rmtree(folder, ignore_errors=True)
+        os.sync()  # the previous run's dirty pages are not the next run's bill
+
+    return remove
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
-    parser.add_argument("--count", type=int, default=1000)
+    parser.add_argument("--set", choices=sorted(SETS), default="full")
+    parser.add_argument("--count", type=int, default=None, help="frames (default: the set's)")
+    parser.add_argument("--pairs", type=int, default=5)
     parser.add_argument("--keep", type=Path, default=None, help="work folder to keep (default: temporary)")
     args = parser.parse_args()
     exiftool = shutil.which("exiftool")
     if exiftool is None:
         sys.exit("exiftool is not installed (Debian: apt-get install libimage-exiftool-perl)")
+    default_count, width, height, quality, noise = SETS[args.set]
+    count = args.count or default_count
     sfap = Path(sys.executable).with_name("sfap")
     work = args.keep or Path(tempfile.mkdtemp(prefix="geotag-bench-"))
     work.mkdir(parents=True, exist_ok=True)
     images, track = work / "in", work / "track.csv"
-    out_sfap, out_exif = work / "out_sfap", work / "out_exiftool"
-    for folder in (images, out_sfap, out_exif):
+    out_sfap, out_exif, out_cp = work / "out_sfap", work / "out_exiftool", work / "out_cp"
+    for folder in (images, out_sfap, out_exif, out_cp):
         shutil.rmtree(folder, ignore_errors=True)
-    make_images(images, args.count)
-    make_track(track, args.count)
+    make_images(images, count, base_frame(width, height, quality, noise))
+    make_track(track, count)
+    names = sorted(p.name for p in images.iterdir())
+    size = (images / names[0]).stat().st_size
 
-    sfap_s = timed(
+    sfap_side = Side(
+        "sfap geotag",
         [
             str(sfap),
             "geotag",
@@ -139,9 +197,11 @@ def main() -> None:
             "--offset-s",
             "0",
             "--no-progress",
-        ]
+        ],
+        before=_remover(out_sfap),
     )
-    exif_s = timed(
+    exif_side = Side(
+        "exiftool -geotag",
         [
             exiftool,
             "-q",
@@ -151,10 +211,20 @@ def main() -> None:
             "-o",
             f"{out_exif}/",
             str(images),
-        ]
+        ],
+        before=_remover(out_exif),
     )
+    cp_side = Side("cp -r", ["cp", "-r", str(images), str(out_cp)], before=_remover(out_cp))
+    print(machine())
+    print(f"{args.set}: {count} frames x {size:,} bytes ({width} x {height} px); track {track}")
+    against_exif = compare(f"sfap vs exiftool ({args.set})", sfap_side, exif_side, pairs=args.pairs)
+    print(against_exif.report(), flush=True)
+    sfap_side.samples.clear()
+    against_cp = compare(f"sfap vs cp -r ({args.set})", sfap_side, cp_side, pairs=args.pairs)
+    print(against_cp.report(), flush=True)
 
-    names = sorted(p.name for p in images.iterdir())
+    for out in (out_sfap, out_exif):  # the last runs' outputs are still there
+        assert sorted(p.name for p in out.glob("*.JPG")) == names, out
     same_sfap = sum(
         exif.compressed_image_data(out_sfap / n) == exif.compressed_image_data(images / n) for n in names
     )
@@ -170,15 +240,58 @@ def main() -> None:
             worst_m, geodesic_distance_m(a.gps_lat_deg, a.gps_lon_deg, b.gps_lat_deg, b.gps_lon_deg)
         )
         worst_alt_m = max(worst_alt_m, abs((a.gps_alt_amsl_m or 0.0) - (b.gps_alt_amsl_m or 0.0)))
-
-    print(f"images: {len(names)} x {(images / names[0]).stat().st_size} bytes; track: {track}")
-    print(f"sfap geotag:     {sfap_s:7.2f} s  ({1000 * sfap_s / len(names):.2f} ms per image)")
-    print(f"exiftool -geotag: {exif_s:7.2f} s  ({1000 * exif_s / len(names):.2f} ms per image)")
-    print(f"speed-up (exiftool time / sfap time): {exif_s / sfap_s:.2f}x")
-    print(f"pixels identical: sfap {same_sfap}/{len(names)}, exiftool {same_exif}/{len(names)}")
+    print(f"image data identical: sfap {same_sfap}/{len(names)}, exiftool {same_exif}/{len(names)}")
     print(f"largest position difference sfap vs exiftool: {worst_m:.4f} m, altitude {worst_alt_m:.4f} m")
+    in_process(images, out_sfap, names, work)
     if args.keep is None:
         shutil.rmtree(work, ignore_errors=True)
+
+
+def _copy_floor(images: Path, names: list[str], out: Path) -> None:
+    """What cp does for each file: one in-kernel copy of the whole file."""
+    for n in names:
+        with open(images / n, "rb") as src, open(out / n, "wb") as dst:
+            size = os.fstat(src.fileno()).st_size
+            done = 0
+            while done < size:
+                done += os.copy_file_range(src.fileno(), dst.fileno(), size - done, done)
+
+
+def in_process(images: Path, tagged: Path, names: list[str], work: Path, rounds: int = 3) -> None:
+    """Labelled in-process figures: exif.write_geotags (1 and 2 threads) on the same frames and
+    tags as sfap wrote, against a copy loop in the same process (the part exif.py owns, without
+    start-up, log reading and matching)."""
+    jobs = []
+    for n in names:
+        t = exif.read_tags(tagged / n)
+        assert t.gps_lat_deg is not None and t.gps_lon_deg is not None
+        tag = exif.GeoTag(lat_deg=t.gps_lat_deg, lon_deg=t.gps_lon_deg, alt_amsl_m=t.gps_alt_amsl_m)
+        jobs.append((n, tag))
+    timings: dict[str, list[float]] = {}
+    for _ in range(rounds):
+        for label in ("copy loop (floor)", "write_geotags, 1 thread", "write_geotags, 2 threads"):
+            out = work / "in_process"
+            _remover(out)()
+            out.mkdir()
+            start = time.perf_counter()
+            if label.startswith("copy"):
+                _copy_floor(images, names, out)
+            else:
+                exif.write_geotags(
+                    [exif.GeotagJob(src=str(images / n), dst=str(out / n), tag=t) for n, t in jobs],
+                    workers=1 if "1 thread" in label else 2,
+                    atomic=False,
+                )
+            timings.setdefault(label, []).append(time.perf_counter() - start)
+    _remover(work / "in_process")()
+    floor = statistics.median(timings["copy loop (floor)"])
+    print(
+        f"in process (labelled; {rounds} rounds, median; "
+        f"load {' '.join(format(v, '.2f') for v in os.getloadavg())}):"
+    )
+    for label, values in timings.items():
+        median = statistics.median(values)
+        print(f"  {label:<28} {median:7.3f} s  ({median / floor:.2f} x the copy loop)")
 
 
 if __name__ == "__main__":

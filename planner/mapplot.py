@@ -17,25 +17,27 @@ no global state is touched and threads can render side by side.
 from __future__ import annotations
 
 import io
+import itertools
 import logging
 import math
 import os
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, cast
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.collections import LineCollection, PolyCollection
-from matplotlib.figure import Figure
-from matplotlib.lines import Line2D
-from matplotlib.patches import Patch, PathPatch, Rectangle
-from matplotlib.path import Path as MplPath
 from numpy.typing import NDArray
 from shapely.geometry import MultiPolygon, Polygon
 
 from .errors import InputError
 from .outputs import atomic_write_bytes
-from .plan import PassKind, SurveyPlan
+from .plan import FlightPass, PassKind, SurveyPlan
+
+if TYPE_CHECKING:  # matplotlib is imported when a map is drawn (about 0.2 s), not with the module
+    from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+    from matplotlib.path import Path as MplPath
 
 log = logging.getLogger(__name__)
 
@@ -86,6 +88,8 @@ def _thin(n: int, max_count: int) -> tuple[NDArray[np.int64], int]:
 
 def polygon_path(geom: Polygon | MultiPolygon, ox: float, oy: float) -> MplPath | None:
     """A compound matplotlib path (exteriors and holes) of a polygon, shifted by -origin."""
+    from matplotlib.path import Path as MplPath
+
     parts = list(geom.geoms) if isinstance(geom, MultiPolygon) else [geom]
     vertices: list[NDArray[np.float64]] = []
     codes: list[NDArray[np.uint8]] = []
@@ -104,6 +108,39 @@ def polygon_path(geom: Polygon | MultiPolygon, ox: float, oy: float) -> MplPath 
     return MplPath(np.concatenate(vertices), np.concatenate(codes))
 
 
+def pass_line_count(flight_pass: FlightPass, tolerance_m: float = 0.01) -> int:
+    """How many lines (rows) a pass flies: its camera-on segments grouped by their offset across
+    the pass direction (a line that crosses a hole or a concave bay is flown as two or more
+    segments of one row). The map's header and legend both count with this."""
+    lines = flight_pass.lines
+    if not lines:
+        return 0
+    dx = dy = 0.0
+    for line in lines:  # the direction of the first segment of positive length
+        dx, dy = line.end_xy_m[0] - line.start_xy_m[0], line.end_xy_m[1] - line.start_xy_m[1]
+        if math.hypot(dx, dy) > 0:
+            break
+    norm = math.hypot(dx, dy)
+    if norm == 0:  # every segment a single point: one row per distinct point
+        return len(
+            {(round(ln.start_xy_m[0] / tolerance_m), round(ln.start_xy_m[1] / tolerance_m)) for ln in lines}
+        )
+    ux, uy = dx / norm, dy / norm
+    offsets = sorted(-ux * ln.start_xy_m[1] + uy * ln.start_xy_m[0] for ln in lines)
+    rows = 1
+    for before, after in itertools.pairwise(offsets):
+        if after - before > tolerance_m:
+            rows += 1
+    return rows
+
+
+def _lines_text(rows: int, segments: int) -> str:
+    text = f"{rows:,} line{'s' if rows != 1 else ''}"
+    if segments != rows:
+        text += f" in {segments:,} segments"
+    return text
+
+
 def _shown(count: int, total: int, step: int, what: str) -> str:
     if count == total:
         return f"{what} (all {total:,})"
@@ -115,6 +152,8 @@ def _shown(count: int, total: int, step: int, what: str) -> str:
 def _draw_scale_bar(ax: Any, length_m: float, limits: tuple[float, float, float, float]) -> None:
     """A scale bar of ``length_m`` in the lower right corner: alternating black and white
     quarters in a white box, the length written above."""
+    from matplotlib.patches import Rectangle
+
     _, x1, y0, y1 = limits
     unit = (y1 - y0) / 100.0  # one hundredth of the map's height
     right = x1 - 6.0 * unit  # room for the label centred on the bar's end
@@ -149,23 +188,39 @@ def _draw_scale_bar(ax: Any, length_m: float, limits: tuple[float, float, float,
     ax.text(right, bottom + 1.8 * unit, label, ha="center", va="bottom", fontsize=9, zorder=10)
 
 
-def render_map_figure(
-    plan: SurveyPlan,
-    *,
-    max_footprints: int = 4000,
-    max_stations: int = DEFAULT_MAX_STATIONS,
-) -> Figure:
-    """The map of ``plan`` as a ``Figure`` on an Agg canvas (see :func:`render_map_png`)."""
-    if max_footprints < 0 or max_stations < 0:
-        raise InputError(
-            f"max_footprints = {max_footprints}, max_stations = {max_stations}: both must be 0 or more"
-        )
+@dataclass(frozen=True)
+class MapFrame:
+    """Where the map sits on the page: its limits in metres from home (x0, x1, y0, y1, at
+    equal scale), the larger data span, and the page layout in inches (map box, margins)."""
+
+    limits: tuple[float, float, float, float]
+    span_m: float
+    map_w_in: float
+    map_h_in: float
+    left_in: float
+    right_in: float
+    top_in: float
+    bottom_in: float
+
+    @property
+    def fig_w_in(self) -> float:
+        return self.left_in + self.map_w_in + self.right_in
+
+    @property
+    def fig_h_in(self) -> float:
+        return self.bottom_in + self.map_h_in + self.top_in
+
+    @property
+    def points_per_m(self) -> float:
+        return self.map_w_in * 72.0 / (self.limits[1] - self.limits[0])
+
+
+def map_frame(plan: SurveyPlan) -> MapFrame:
+    """The extent of everything drawn (area, exclusions, path, footprints, home), padded, and a
+    page shaped like it (within limits): margins for the title lines, the axis labels and
+    caption, and the legend on the right."""
     ox, oy = plan.home_xy_m
     st = plan.stations
-    n = len(st)
-    kind_of_pass = {p.index: p.kind for p in plan.passes}
-
-    # extent: area, exclusions, path, footprints, home
     boxes = [plan.area_xy.bounds] if not plan.area_xy.is_empty else []
     boxes += [z.bounds for z in plan.exclusions_xy if not z.is_empty]
     xs = [b[0] for b in boxes] + [b[2] for b in boxes] + [ox]
@@ -173,7 +228,7 @@ def render_map_figure(
     if len(plan.path_xy_m):
         xs += [float(np.min(plan.path_xy_m[:, 0])), float(np.max(plan.path_xy_m[:, 0]))]
         ys += [float(np.min(plan.path_xy_m[:, 1])), float(np.max(plan.path_xy_m[:, 1]))]
-    if n:
+    if len(st):
         fp = st.footprint_xy_m
         xs += [float(np.min(fp[..., 0])), float(np.max(fp[..., 0]))]
         ys += [float(np.min(fp[..., 1])), float(np.max(fp[..., 1]))]
@@ -182,18 +237,10 @@ def render_map_figure(
     span = max(x1 - x0, y1 - y0, 10.0)
     pad = 0.06 * span
     x0, x1, y0, y1 = x0 - pad, x1 + pad, y0 - pad, y1 + pad
-
-    # a figure shaped like the map (within limits): margins in inches for the title lines,
-    # the axis labels and caption, and the legend on the right
     aspect = (y1 - y0) / max(x1 - x0, 1e-9)
     map_w_in = 9.0
     map_h_in = float(np.clip(map_w_in * aspect, 4.5, 12.0))
-    left_in, right_in, top_in, bottom_in = 0.85, 3.4, 1.0, 1.0
-    fig_w_in, fig_h_in = left_in + map_w_in + right_in, bottom_in + map_h_in + top_in
-    fig = Figure(figsize=(fig_w_in, fig_h_in), dpi=100)
-    FigureCanvasAgg(fig)
-    ax = fig.add_axes((left_in / fig_w_in, bottom_in / fig_h_in, map_w_in / fig_w_in, map_h_in / fig_h_in))
-    # widen the short side so that the data fill the axes box at equal scale
+    # widen the short side so that the data fill the map box at equal scale
     box_ratio = map_h_in / map_w_in
     if (y1 - y0) / (x1 - x0) > box_ratio:
         grow = ((y1 - y0) / box_ratio - (x1 - x0)) / 2
@@ -201,6 +248,85 @@ def render_map_figure(
     else:
         grow = ((x1 - x0) * box_ratio - (y1 - y0)) / 2
         y0, y1 = y0 - grow, y1 + grow
+    return MapFrame(
+        limits=(x0, x1, y0, y1),
+        span_m=span,
+        map_w_in=map_w_in,
+        map_h_in=map_h_in,
+        left_in=0.85,
+        right_in=3.4,
+        top_in=1.0,
+        bottom_in=1.0,
+    )
+
+
+def header_text(plan: SurveyPlan) -> str:
+    """The line under the title: GSD, height, lines (counted as the legend counts them)..."""
+    s = plan.summary
+    rows = sum(pass_line_count(p) for p in plan.passes)
+    segments = sum(len(p.lines) for p in plan.passes)
+    return (
+        f"GSD {s.gsd_cm:.2f} cm  |  {s.altitude_agl_m:.1f} m above ground  |  "
+        f"{_lines_text(rows, segments)}, "
+        f"{s.pass_count} pass{'es' if s.pass_count != 1 else ''}  |  "
+        f"{s.photo_count:,} photos  |  {s.area_m2 / 10_000:,.2f} ha  |  "
+        f"{s.flight_distance_m / 1000:,.1f} km, {s.flight_time_s / 60:,.0f} min"
+    )
+
+
+def caption_text(plan: SurveyPlan) -> str:
+    """The grid and the angle between grid north and true north at home."""
+    convergence_deg = plan.frame.true_north_grid_bearing_deg(plan.home.lon_deg, plan.home.lat_deg)
+    epsg = plan.frame.epsg
+    crs_name = f"EPSG:{epsg} ({plan.frame.crs.name})" if epsg else plan.frame.crs.name
+    return (
+        f"Grid: {crs_name}, metres from home. The north arrow points to grid north; "
+        f"true north is {abs(convergence_deg):.2f} deg "
+        f"{'east' if convergence_deg >= 0 else 'west'} of it at home."
+    )
+
+
+def pass_legend_counts(plan: SurveyPlan) -> dict[PassKind, tuple[int, int]]:
+    """Per kind of pass: (lines, camera-on segments), in the order the passes come."""
+    counts: dict[PassKind, tuple[int, int]] = {}
+    for p in plan.passes:
+        if not p.lines:
+            continue
+        rows, segments = counts.get(p.kind, (0, 0))
+        counts[p.kind] = (rows + pass_line_count(p), segments + len(p.lines))
+    return counts
+
+
+def render_map_figure(
+    plan: SurveyPlan,
+    *,
+    max_footprints: int = 4000,
+    max_stations: int = DEFAULT_MAX_STATIONS,
+) -> Figure:
+    """The map of ``plan`` as a ``Figure`` on an Agg canvas (see :func:`render_map_png`)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.collections import LineCollection, PolyCollection
+    from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch, PathPatch
+
+    if max_footprints < 0 or max_stations < 0:
+        raise InputError(
+            f"max_footprints = {max_footprints}, max_stations = {max_stations}: both must be 0 or more"
+        )
+    ox, oy = plan.home_xy_m
+    st = plan.stations
+    n = len(st)
+    kind_of_pass = {p.index: p.kind for p in plan.passes}
+    frame = map_frame(plan)
+    x0, x1, y0, y1 = frame.limits
+    span = frame.span_m
+    map_w_in, map_h_in = frame.map_w_in, frame.map_h_in
+    left_in, bottom_in = frame.left_in, frame.bottom_in
+    fig_w_in, fig_h_in = frame.fig_w_in, frame.fig_h_in
+    fig = Figure(figsize=(fig_w_in, fig_h_in), dpi=100)
+    FigureCanvasAgg(fig)
+    ax = fig.add_axes((left_in / fig_w_in, bottom_in / fig_h_in, map_w_in / fig_w_in, map_h_in / fig_h_in))
     points_per_m = map_w_in * 72.0 / (x1 - x0)
     ax.set_facecolor("white")
     handles: list[Patch | Line2D] = []
@@ -269,7 +395,6 @@ def render_map_figure(
             zorder=4,
         )
         handles.append(Line2D([], [], color="#424242", lw=0.8, ls=(0, (4, 3)), label="flight path"))
-    kinds_drawn: dict[PassKind, int] = {}
     layer = {PassKind.OBLIQUE: 5.0, PassKind.CROSSHATCH: 5.1, PassKind.NADIR: 5.2}
     for p in plan.passes:
         if not p.lines:
@@ -282,18 +407,19 @@ def render_map_figure(
                 cast(Any, segments - (ox, oy)),
                 colors=_PASS_COLOURS[p.kind],
                 linewidths=line_w,
+                capstyle="round",  # a one-photo segment (start = end) shows as a dot
                 zorder=layer[p.kind],
             )
         )
-        kinds_drawn[p.kind] = kinds_drawn.get(p.kind, 0) + len(p.lines)
-    for kind, count in kinds_drawn.items():
+    kinds_drawn = pass_legend_counts(plan)
+    for kind, (rows, count) in kinds_drawn.items():
         handles.append(
             Line2D(
                 [],
                 [],
                 color=_PASS_COLOURS[kind],
                 lw=1.6,
-                label=f"camera on, {kind.value} ({count} lines)",
+                label=f"camera on, {kind.value} ({_lines_text(rows, count)})",
             )
         )
 
@@ -381,7 +507,6 @@ def render_map_figure(
         zorder=9,
     )
 
-    s = plan.summary
     fig.text(
         left_in / fig_w_in,
         1.0 - 0.2 / fig_h_in,
@@ -391,30 +516,8 @@ def render_map_figure(
         fontsize=14,
         fontweight="bold",
     )
-    fig.text(
-        left_in / fig_w_in,
-        1.0 - 0.58 / fig_h_in,
-        f"GSD {s.gsd_cm:.2f} cm  |  {s.altitude_agl_m:.1f} m above ground  |  "
-        f"{s.line_count:,} lines in {s.pass_count} pass{'es' if s.pass_count != 1 else ''}  |  "
-        f"{s.photo_count:,} photos  |  {s.area_m2 / 10_000:,.2f} ha  |  "
-        f"{s.flight_distance_m / 1000:,.1f} km, {s.flight_time_s / 60:,.0f} min",
-        ha="left",
-        va="top",
-        fontsize=10,
-    )
-    convergence_deg = plan.frame.true_north_grid_bearing_deg(plan.home.lon_deg, plan.home.lat_deg)
-    epsg = plan.frame.epsg
-    crs_name = f"EPSG:{epsg} ({plan.frame.crs.name})" if epsg else plan.frame.crs.name
-    fig.text(
-        left_in / fig_w_in,
-        0.15 / fig_h_in,
-        f"Grid: {crs_name}, metres from home. The north arrow points to grid north; "
-        f"true north is {abs(convergence_deg):.2f} deg "
-        f"{'east' if convergence_deg >= 0 else 'west'} of it at home.",
-        ha="left",
-        fontsize=8,
-        color="#424242",
-    )
+    fig.text(left_in / fig_w_in, 1.0 - 0.58 / fig_h_in, header_text(plan), ha="left", va="top", fontsize=10)
+    fig.text(left_in / fig_w_in, 0.15 / fig_h_in, caption_text(plan), ha="left", fontsize=8, color="#424242")
     ax.legend(
         handles=handles,
         loc="upper left",
@@ -434,9 +537,22 @@ def map_png_bytes(
     dpi: int = 130,
 ) -> bytes:
     """The map of ``plan`` as PNG bytes (see :func:`render_map_png`)."""
-    fig = render_map_figure(plan, max_footprints=max_footprints, max_stations=max_stations)
+    from PIL import Image
+
+    from .maprender import draw_map
+
+    if max_footprints < 0 or max_stations < 0:
+        raise InputError(
+            f"max_footprints = {max_footprints}, max_stations = {max_stations}: both must be 0 or more"
+        )
+    # Drawn with Pillow (planner/maprender.py): matplotlib's import alone costs more than a
+    # small plan's planning and every other output together.
+    rgb = draw_map(plan, max_footprints=max_footprints, max_stations=max_stations, dpi=dpi)
+    # A map is a few flat colours and their anti-aliased edges: a 256-colour palette keeps
+    # them (no dithering) and encodes 3-4x faster and 4x smaller than 24-bit colour.
+    image = rgb.quantize(colors=256, method=Image.Quantize.FASTOCTREE, dither=Image.Dither.NONE)
     buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=dpi, facecolor="white")
+    image.save(buffer, format="PNG", compress_level=6)
     return buffer.getvalue()
 
 

@@ -8,15 +8,13 @@ check found problems, 2 usage (bad options or bad input files).
 from __future__ import annotations
 
 import importlib
-import logging
+import os
 import sys
 from typing import Any
 
 import click
 
 from planner.errors import SfapError
-
-from . import __version__
 
 #: name -> (module in sfap.commands, one-line help). The order is the order of ``sfap --help``.
 COMMANDS: dict[str, tuple[str, str]] = {
@@ -31,11 +29,42 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "check": ("check", "Check coverage, overlap, B/H, GSD and blur of images or a plan."),
 }
 
-log = logging.getLogger("sfap")
+
+def _debug_detail() -> None:
+    """The traceback of the error being handled, at debug level (shown with -vv)."""
+    import logging  # not at import: `sfap --help` does without it
+
+    logging.getLogger("sfap").debug("error detail", exc_info=True)
+
+
+def _help_width() -> int:
+    """click's own help width (the terminal's columns, at most 80, less 2, at least 50), found
+    without importing shutil: click imports it for this, with zlib, bz2 and lzma, a tenth of
+    `sfap --help`."""
+    columns = 80
+    try:
+        columns = int(os.environ["COLUMNS"])
+    except (KeyError, ValueError):
+        try:
+            if sys.__stdout__ is not None:
+                columns = os.get_terminal_size(sys.__stdout__.fileno()).columns
+        except (OSError, ValueError):
+            pass
+    return max(min(columns, 80) - 2, 50)
+
+
+class _Context(click.Context):
+    def make_formatter(self) -> click.HelpFormatter:
+        from click import formatting
+
+        width = self.terminal_width or formatting.FORCED_WIDTH or _help_width()
+        return self.formatter_class(width=width, max_width=self.max_content_width)
 
 
 class LazyGroup(click.Group):
     """A group whose commands are imported on first use."""
+
+    context_class = _Context
 
     def list_commands(self, ctx: click.Context) -> list[str]:
         return list(COMMANDS)
@@ -57,12 +86,12 @@ class LazyGroup(click.Group):
         try:
             return super().invoke(ctx)
         except SfapError as error:
-            log.debug("error detail", exc_info=True)
+            _debug_detail()
             click.echo(f"error: {error}", err=True)
             ctx.exit(error.exit_code)
         except OSError as error:
             # A file that cannot be read or written: name it, no traceback.
-            log.debug("error detail", exc_info=True)
+            _debug_detail()
             where = f" ({error.filename})" if getattr(error, "filename", None) else ""
             click.echo(f"error: {error.strerror or error}{where}", err=True)
             ctx.exit(1)
@@ -71,8 +100,27 @@ class LazyGroup(click.Group):
             ctx.exit(130)
 
 
-@click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
-@click.version_option(__version__, prog_name="sfap")
+def _print_version(ctx: click.Context, _param: click.Parameter, value: bool) -> None:
+    if not value or ctx.resilient_parsing:
+        return
+    from . import __version__  # importlib.metadata: only when asked
+
+    click.echo(f"sfap, version {__version__}")
+    ctx.exit()
+
+
+@click.group(
+    cls=LazyGroup,
+    context_settings={"help_option_names": ["-h", "--help"]},
+)
+@click.option(
+    "--version",
+    is_flag=True,
+    expose_value=False,
+    is_eager=True,
+    callback=_print_version,
+    help="Show the version and exit.",
+)
 @click.option("-v", "--verbose", count=True, help="More log output on stderr (-vv for debug).")
 @click.option("-q", "--quiet", is_flag=True, help="Only errors on stderr.")
 def cli(verbose: int, quiet: bool) -> None:
@@ -81,6 +129,8 @@ def cli(verbose: int, quiet: bool) -> None:
 
     Example: sfap plan missions/bardenas-gully.toml -o out/gully
     """
+    import logging
+
     level = logging.ERROR if quiet else (logging.WARNING, logging.INFO, logging.DEBUG)[min(verbose, 2)]
     logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s", stream=sys.stderr)
 

@@ -428,8 +428,10 @@ def kml_bytes(
     root = kml_document(plan, max_stations=max_stations, home_alt_amsl_m=home_alt_amsl_m)
     ET.register_namespace("", KML_NS)
     ET.indent(root, space=" ")
-    data: bytes = ET.tostring(root, encoding="utf-8", xml_declaration=True)
-    return data + b"\n"
+    # Serialised to text and encoded once: ElementTree's byte path writes through a
+    # TextIOWrapper one small piece at a time, 3x slower; the bytes are the same.
+    text = ET.tostring(root, encoding="unicode")
+    return b"<?xml version='1.0' encoding='utf-8'?>\n" + text.encode("utf-8") + b"\n"
 
 
 def write_kml(

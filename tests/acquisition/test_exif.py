@@ -335,3 +335,178 @@ def test_xmp_exif_gps_copies_are_updated(tmp_path: Path) -> None:
         "W"
     )
     assert "Xmp.exif.GPSAltitude" not in written  # not carried before: not invented
+
+
+# ---------------------------------------------------------------------------- header-only writing
+
+COPR = SHARED_DATA / "copr_kap" / "images"
+
+
+def _exiv2_on_whole_file(data: bytes, tag: exif.GeoTag) -> bytes:
+    """The independent construction: exiv2 given the whole file (image data and all), the way
+    tags were written before the header-only path existed."""
+    exif._register_namespaces()
+    image = pyexiv2.ImageData(data)
+    try:
+        exif_map, xmp_map = image.read_exif(), image.read_xmp()
+        values = exif._exif_gps_values(tag)
+        for key in exif_map:
+            if key.startswith("Exif.GPSInfo.") and key not in values:
+                values[key] = None
+        image.modify_exif({k: v for k, v in values.items() if v is not None or k in exif_map})
+        xmp_values = exif._xmp_values(tag, xmp_map)
+        if xmp_values:
+            image.modify_xmp(xmp_values)
+        out: bytes = image.get_bytes()
+    finally:
+        image.close()
+    return out
+
+
+@pytest.mark.parametrize(
+    "source",
+    [
+        GARFIELD_FIRST,  # Parrot Sequoia: EXIF with GPS, Pix4D XMP
+        sorted(GARFIELD.glob("*.JPG"))[-1],
+        sorted(COPR.glob("*.jpg"))[0],  # Canon EOS: maker notes, no GPS, no XMP
+    ],
+    ids=lambda p: p.name,
+)
+def test_header_only_write_equals_exiv2_on_the_whole_file(tmp_path: Path, source: Path) -> None:
+    tag = _tag(alt_rel_home_m=80.0)
+    exif.write_geotag(source, tmp_path / "out.jpg", tag)
+    assert (tmp_path / "out.jpg").read_bytes() == _exiv2_on_whole_file(source.read_bytes(), tag)
+    assert exif.geotag_bytes(source.read_bytes(), tag) == (tmp_path / "out.jpg").read_bytes()
+
+
+def test_bytes_after_the_header_are_the_source_bytes(tmp_path: Path) -> None:
+    """Image data, EOI and a trailer after EOI (DJI preview images) are copied as they are."""
+    data = make_jpeg(tmp_path / "p.jpg", progressive=True, xmp={"Xmp.drone-dji.GpsLatitude": "+1.0"})
+    trailer = b"\xff\xd8" + bytes(range(256)) * 40 + b"\xff\xd9"
+    src = tmp_path / "trailer.jpg"
+    src.write_bytes(data.read_bytes() + trailer)
+    exif.write_geotag(src, tmp_path / "out.jpg", _tag())
+    out = (tmp_path / "out.jpg").read_bytes()
+    raw = src.read_bytes()
+    tail = raw[raw.index(b"\xff\xda") :]  # no SOS marker in this small file's header
+    assert out.endswith(tail) and out.endswith(trailer)
+    assert exif.read_tags(tmp_path / "out.jpg").dji_lat_deg == pytest.approx(-33.8567844)
+
+
+def _read_with_exiftool(path: Path) -> dict[str, object]:
+    import json
+    import subprocess
+
+    exiftool = shutil.which("exiftool")
+    assert exiftool is not None, "exiftool is needed (Debian: libimage-exiftool-perl)"
+    done = subprocess.run(
+        [exiftool, "-j", "-n", "-G1", "-a", "-GPS:all", "-XMP-Camera:all", "-MakerNotes:all", str(path)],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    record: dict[str, object] = json.loads(done.stdout)[0]
+    record.pop("SourceFile")
+    return record
+
+
+def test_exiftool_reads_the_tags_and_the_maker_notes_survive(tmp_path: Path) -> None:
+    source = sorted(COPR.glob("*.jpg"))[0]
+    tag = _tag()
+    exif.write_geotag(source, tmp_path / "out.jpg", tag)
+    before, after = _read_with_exiftool(source), _read_with_exiftool(tmp_path / "out.jpg")
+    notes_before = {k: v for k, v in before.items() if k.startswith("Canon")}
+    assert len(notes_before) > 50  # the Canon maker notes exiftool decodes
+    assert {k: v for k, v in after.items() if k.startswith("Canon")} == notes_before
+    # The GPS group holds unsigned values and their hemisphere references.
+    assert (after["GPS:GPSLatitudeRef"], after["GPS:GPSLongitudeRef"]) == ("S", "W")
+    assert after["GPS:GPSLatitude"] == pytest.approx(-tag.lat_deg, abs=1e-8)
+    assert after["GPS:GPSLongitude"] == pytest.approx(-tag.lon_deg, abs=1e-8)
+    assert after["GPS:GPSAltitude"] == pytest.approx(12.345) and after["GPS:GPSAltitudeRef"] == 1
+    assert after["GPS:GPSImgDirection"] == pytest.approx(271.5)
+    assert (after["XMP-Camera:Yaw"], after["XMP-Camera:Pitch"], after["XMP-Camera:Roll"]) == (
+        271.5,
+        2.25,
+        -1.5,
+    )
+    assert exif.compressed_image_data(tmp_path / "out.jpg") == exif.compressed_image_data(source)
+
+
+def _damaged_copies(folder: Path) -> dict[str, Path]:
+    """Real frames with their end marker cut off or overwritten, as cards hold them."""
+    data = GARFIELD_FIRST.read_bytes()
+    assert data.endswith(b"\xff\xd9")
+    cases = {
+        "cut.jpg": data[:-5000],  # the camera stopped writing mid-scan
+        "zeroed.jpg": data[:-2] + b"\x00\x00",  # the end marker overwritten
+        "no_eoi.jpg": data[:-2],
+    }
+    paths = {}
+    for name, content in cases.items():
+        paths[name] = folder / name
+        paths[name].write_bytes(content)
+    return paths
+
+
+def test_missing_end_marker_is_tagged_with_a_warning_naming_the_file(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    from PIL import ImageFile
+
+    for name, src in _damaged_copies(tmp_path).items():
+        caplog.clear()
+        dst = tmp_path / "out" / name
+        with caplog.at_level("WARNING", logger="acquisition.exif"):
+            exif.write_geotag(src, dst, _tag())
+        assert [r.getMessage() for r in caplog.records if name in r.getMessage() and "EOI" in r.getMessage()]
+        other = _exifread(dst)
+        assert -_dms(other["GPS GPSLatitude"]) == pytest.approx(-33.8567844, abs=1e-5 / 3600)
+        raw, out = src.read_bytes(), dst.read_bytes()
+        header_in = exif._split_bytes(raw, name).sos_offset
+        header_out = exif._split_bytes(out, name).sos_offset
+        assert out[header_out:] == raw[header_in:]  # every byte of the damaged scan, unchanged
+        previous = ImageFile.LOAD_TRUNCATED_IMAGES
+        ImageFile.LOAD_TRUNCATED_IMAGES = True
+        try:  # a decoder still reads it, to the same pixels as the source
+            assert np.array_equal(np.asarray(Image.open(dst)), np.asarray(Image.open(src)))
+        finally:
+            ImageFile.LOAD_TRUNCATED_IMAGES = previous
+
+
+def test_whole_files_and_trailers_raise_no_end_marker_warning(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    src = tmp_path / "trailer.jpg"
+    src.write_bytes(GARFIELD_FIRST.read_bytes() + b"\x00" * 64)  # padding after EOI
+    with caplog.at_level("WARNING", logger="acquisition.exif"):
+        exif.write_geotag(GARFIELD_FIRST, tmp_path / "a.jpg", _tag())
+        exif.write_geotag(src, tmp_path / "b.jpg", _tag())
+    assert not [r for r in caplog.records if "EOI" in r.getMessage()]
+
+
+def test_write_geotags_batch(tmp_path: Path) -> None:
+    damaged = _damaged_copies(tmp_path)
+    broken = tmp_path / "broken.jpg"
+    broken.write_bytes(GARFIELD_FIRST.read_bytes()[:300])  # cut inside the EXIF segment
+    sources = [*sorted(GARFIELD.glob("*.JPG"))[:5], damaged["cut.jpg"], broken]
+    tags = [_tag(lat_deg=10.0 + k) for k in range(len(sources))]
+    for workers in (1, 3):
+        out = tmp_path / f"w{workers}"
+        out.mkdir()
+        jobs = [
+            exif.GeotagJob(src=str(s), dst=str(out / s.name), tag=t)
+            for s, t in zip(sources, tags, strict=True)
+        ]
+        done: list[int] = []
+        results = exif.write_geotags(jobs, workers=workers, atomic=False, progress=done.append)
+        assert done[-1] == len(jobs)
+        assert [r.src for r in results] == [str(s) for s in sources]
+        assert [r.written for r in results] == [True] * 6 + [False]
+        assert results[-1].error is not None and "broken.jpg" in results[-1].error
+        assert not (out / "broken.jpg").exists()
+        assert [bool(r.warnings) for r in results[:6]] == [False] * 5 + [True]
+        assert "cut.jpg" in results[5].warnings[0]
+        for k, source in enumerate(sources[:6]):
+            assert exif.read_tags(out / source.name).gps_lat_deg == pytest.approx(10.0 + k)
+    for source in sources[:6]:
+        assert (tmp_path / "w1" / source.name).read_bytes() == (tmp_path / "w3" / source.name).read_bytes()

@@ -1,0 +1,107 @@
+"""map.png: its header and its legend count the same lines, and the planner's summary agrees
+(issue 13). The planner counts rows from its own line layout; the map groups the camera-on
+segments by their offset across the pass: two constructions that must meet."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+
+from planner.mapplot import pass_line_count, render_map_figure
+from planner.spec import load_spec
+from planner.survey import plan_survey
+
+MISSIONS = sorted((Path(__file__).resolve().parents[2] / "missions").glob("*.toml"))
+
+
+@pytest.mark.parametrize("mission", MISSIONS, ids=[m.stem for m in MISSIONS])
+def test_header_and_legend_agree_on_the_number_of_lines(mission: Path) -> None:
+    plan = plan_survey(load_spec(mission))
+    fig = render_map_figure(plan)
+    header = " ".join(t.get_text() for t in fig.texts)
+    match = re.search(r"([\d,]+) lines?(?: in ([\d,]+) segments)?, \d+ pass", header)
+    assert match is not None, header
+    header_lines = int(match.group(1).replace(",", ""))
+    legend = fig.axes[0].get_legend()
+    assert legend is not None
+    legend_lines = 0
+    for text in legend.get_texts():
+        found = re.match(r"camera on, \w+ \(([\d,]+) lines?", text.get_text())
+        if found:
+            legend_lines += int(found.group(1).replace(",", ""))
+    assert header_lines == legend_lines == plan.summary.line_count
+    segments = sum(len(p.lines) for p in plan.passes)
+    assert (match.group(2) is not None) == (segments != header_lines)
+    if match.group(2) is not None:
+        assert int(match.group(2).replace(",", "")) == segments
+
+
+def test_pass_line_count_groups_segments_of_one_row() -> None:
+    plan = plan_survey(load_spec(MISSIONS[0]))
+    nadir = plan.passes[0]
+    # a row split into two pieces (a hole) is still one line; a shifted copy is another line
+    first = nadir.lines[0]
+    mid = ((first.start_xy_m[0] + first.end_xy_m[0]) / 2, (first.start_xy_m[1] + first.end_xy_m[1]) / 2)
+    halves = (
+        type(first)(**{**first.__dict__, "end_xy_m": mid}),
+        type(first)(**{**first.__dict__, "start_xy_m": mid}),
+    )
+    split = type(nadir)(**{**nadir.__dict__, "lines": halves})
+    assert pass_line_count(split) == 1
+    dx, dy = first.end_xy_m[0] - first.start_xy_m[0], first.end_xy_m[1] - first.start_xy_m[1]
+    norm = (dx * dx + dy * dy) ** 0.5
+    shift = (-dy / norm * 0.05, dx / norm * 0.05)  # 5 cm across the line
+    moved = type(first)(
+        **{
+            **first.__dict__,
+            "start_xy_m": (first.start_xy_m[0] + shift[0], first.start_xy_m[1] + shift[1]),
+            "end_xy_m": (first.end_xy_m[0] + shift[0], first.end_xy_m[1] + shift[1]),
+        }
+    )
+    assert pass_line_count(type(nadir)(**{**nadir.__dict__, "lines": (first, moved)})) == 2
+
+
+def _pixel(frame: object, x_m: float, y_m: float, dpi: int) -> tuple[int, int]:
+    x0, x1, y0, y1 = frame.limits  # type: ignore[attr-defined]
+    col = (frame.left_in + (x_m - x0) / (x1 - x0) * frame.map_w_in) * dpi  # type: ignore[attr-defined]
+    row = (frame.top_in + (y1 - y_m) / (y1 - y0) * frame.map_h_in) * dpi  # type: ignore[attr-defined]
+    return round(row), round(col)
+
+
+def test_map_png_draws_every_camera_on_segment_where_it_lies(tmp_path: Path) -> None:
+    """Every camera-on segment is inked in its pass colour along its length, and a one-photo
+    segment (start = end) shows as its station's dot, at the place the page layout puts it."""
+    import numpy as np
+    from PIL import Image
+
+    from planner.mapplot import _PASS_COLOURS, map_frame, render_map_png
+
+    plan = plan_survey(load_spec(MISSIONS[[m.stem for m in MISSIONS].index("field-concave")]))
+    points = [ln for p in plan.passes for ln in p.lines]
+    assert any(ln.length_m == 0 for ln in points)  # the case issue 13 names
+    png = np.asarray(Image.open(render_map_png(plan, tmp_path / "map.png")).convert("RGB")).astype(int)
+    frame = map_frame(plan)
+    ox, oy = plan.home_xy_m
+    blue = np.array([int(_PASS_COLOURS[plan.passes[0].kind][i : i + 2], 16) for i in (1, 3, 5)])
+    for ln in points:
+        # a segment: its own colour somewhere along it (station dots are drawn over it);
+        # a one-photo segment (start = end): its station's dot
+        inked = False
+        for t in (0.1, 0.3, 0.5, 0.7, 0.9):
+            x = ln.start_xy_m[0] + t * (ln.end_xy_m[0] - ln.start_xy_m[0]) - ox
+            y = ln.start_xy_m[1] + t * (ln.end_xy_m[1] - ln.start_xy_m[1]) - oy
+            row, col = _pixel(frame, x, y, 130)
+            patch = png[row - 1 : row + 2, col - 1 : col + 2].reshape(-1, 3)
+            if ln.length_m > 0:  # (the first line lies under the green entry arrow)
+                inked |= bool((np.abs(patch - blue).max(axis=1) < 60).any())
+                inked |= bool((np.abs(patch - (0, 200, 83)).max(axis=1) < 30).any())
+            else:
+                inked |= bool((patch.max(axis=1) < 90).any())
+        assert inked, ln
+    # and a place inside the area, away from lines, is the area's green
+    area_point = plan.area_xy.representative_point()
+    row, col = _pixel(frame, area_point.x - ox, area_point.y - oy, 130)
+    around = png[row - 30 : row + 30, col - 30 : col + 30].reshape(-1, 3)
+    assert (np.abs(around - (0xE3, 0xF1, 0xD4)).max(axis=1) <= 3).sum() > 100  # 256-colour palette
