@@ -41,7 +41,7 @@ import math
 import os
 import re
 import shutil
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from enum import StrEnum
@@ -952,6 +952,7 @@ def geotag_images(
             backup_dir=None if backup_dir is None else Path(backup_dir),
             overwrite=overwrite,
             report=lambda n: report(len(paths) + n, total),
+            warn=warnings.extend,
             summary=result,
         )
     report(total, total)
@@ -1005,6 +1006,7 @@ def _write_outputs(
     backup_dir: Path | None,
     overwrite: bool,
     report: Callable[[int], None],
+    warn: Callable[[Iterable[str]], None],
     summary: Callable[[list[FrameResult], list[str]], GeotagResult],
 ) -> tuple[list[FrameResult], list[str]]:
     """Write tagged frames, sidecars and the report; returns the frames with their output paths."""
@@ -1022,25 +1024,27 @@ def _write_outputs(
             shutil.copy2(frame.source_path, target)
     with staged_output_dir(out_dir, overwrite=overwrite) as staging:
         by_path: dict[str, FrameResult] = {}
-        for n, frame in enumerate(to_write, start=1):
-            dst = Path(frame.source_path) if in_place else staging / frame.name
+        # In place: each original is replaced atomically (synced). Copies go plainly into the
+        # staging folder, which is moved into place whole at the end. Frames are written a few at
+        # a time (the image data is copied by the kernel, see exif.write_geotags).
+        jobs = [
+            exif.GeotagJob(
+                src=frame.source_path,
+                dst=frame.source_path if in_place else str(staging / frame.name),
+                tag=_geotag_of(frame),
+            )
+            for frame in to_write
+        ]
+        outcomes = exif.write_geotags(jobs, overwrite=in_place, atomic=in_place, progress=report)
+        for frame, outcome in zip(to_write, outcomes, strict=True):
             final_path = Path(frame.source_path) if in_place else out_dir / frame.name
-            try:
-                # In place: each original is replaced atomically (synced). Copies go plainly into
-                # the staging folder, which is moved into place whole at the end.
-                exif.write_geotag(
-                    frame.source_path,
-                    dst,
-                    _geotag_of(frame),
-                    overwrite=in_place,
-                    atomic=in_place,
-                )
+            if outcome.written:
                 by_path[frame.source_path] = _with(frame, output_path=str(final_path))
-            except (GeotagError, OSError) as error:
+                warn(outcome.warnings)
+            else:
                 by_path[frame.source_path] = _with(
-                    frame, status=FrameStatus.WRITE_FAILED, message=f"tags not written: {error}"
+                    frame, status=FrameStatus.WRITE_FAILED, message=f"tags not written: {outcome.error}"
                 )
-            report(n)
         written = [by_path.get(f.source_path, f) for f in frames]
         placed = [f for f in written if f.placed]
         rows = [

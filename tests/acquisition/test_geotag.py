@@ -549,6 +549,30 @@ def test_geotag_synthetic_survey(
     assert [e["seq"] for e in report["summary"]["unmatched_events"]] == [int(events.seq[j]) for j in DROPPED]
 
 
+def test_a_frame_cut_short_is_tagged_and_named_in_the_report(
+    tmp_path: Path, flight: Flight, survey_images: tuple[Path, list[int | None]]
+) -> None:
+    """A frame whose end marker is missing (cut short on the card) is still tagged, its image
+    data unchanged, and the report's warnings name it; the other frames are unaffected."""
+    card, truth = survey_images
+    cut = card / "DSC00007.JPG"
+    whole = cut.read_bytes()
+    assert whole.endswith(b"\xff\xd9")
+    cut.write_bytes(whole[:-2])
+    result = geotag.geotag_images(card, flight.log, tmp_path / "out")
+    assert not result.untagged
+    by_name = {f.name: f for f in result.frames}
+    assert by_name["DSC00007.JPG"].status is FrameStatus.MATCHED
+    assert [w for w in result.warnings if "DSC00007.JPG" in w], result.warnings
+    written = (tmp_path / "out" / "DSC00007.JPG").read_bytes()
+    start = written.index(b"\xff\xda")  # start of scan: everything from it on is the source's
+    assert written[start:] == whole[whole.index(b"\xff\xda") : -2]
+    lat, lon, _ = _exifread_position(tmp_path / "out" / "DSC00007.JPG")
+    assert lat == pytest.approx(by_name["DSC00007.JPG"].lat_deg, abs=1e-7)
+    report = json.loads((tmp_path / "out" / "geotag_report.json").read_text())
+    assert any("DSC00007.JPG" in w for w in report["summary"]["warnings"])
+
+
 def test_geotag_by_time_without_events(tmp_path: Path, flight: Flight) -> None:
     events = flight.log.events
     assert events is not None
