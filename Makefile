@@ -5,7 +5,7 @@ PYTHON ?= python3.11
 VENV ?= .venv
 BIN := $(VENV)/bin
 
-.PHONY: install demo test test-fast lint bench clean
+.PHONY: install system-deps demo test test-fast lint bench clean
 
 $(BIN)/sfap: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -18,10 +18,17 @@ install: $(BIN)/sfap
 demo: install
 	$(BIN)/sfap plan missions/bardenas-gully.toml -o out/bardenas-gully --overwrite
 
-test: install
+# Debian packages the tests use as independent readers: exiftool (libimage-exiftool-perl).
+system-deps:
+	@command -v exiftool >/dev/null || { \
+	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null; then \
+	    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq libimage-exiftool-perl; \
+	  else echo "the tests need exiftool: sudo apt-get install libimage-exiftool-perl" >&2; exit 2; fi; }
+
+test: install system-deps
 	$(BIN)/python -m pytest -q
 
-test-fast: install
+test-fast: install system-deps
 	$(BIN)/python -m pytest -q -m "not slow"
 
 lint: install
