@@ -260,8 +260,12 @@ def _wrap(rec: Any) -> ColmapModel:
     )
 
 
-def incremental_mapping(database: Path, image_dir: Path, output_dir: Path, *, min_model_size: int = 3) -> list[ColmapModel]:
-    """COLMAP's incremental mapper; the models it kept, largest first."""
+def incremental_mapping(
+    database: Path, image_dir: Path, output_dir: Path, *, min_model_size: int = 3, use_priors: bool = False
+) -> list[ColmapModel]:
+    """COLMAP's incremental mapper; the models it kept, largest first. ``use_priors``: the pose
+    priors constrain the bundle adjustment (robust loss), so a frame matched to the wrong place
+    cannot pull the model apart."""
     import pycolmap
 
     output_dir.mkdir(parents=True, exist_ok=True)
@@ -269,6 +273,9 @@ def incremental_mapping(database: Path, image_dir: Path, output_dir: Path, *, mi
     options.min_model_size = min_model_size
     options.num_threads = min(os.cpu_count() or 1, 4)
     options.random_seed = 1
+    if use_priors:
+        options.use_prior_position = True
+        options.use_robust_loss_on_prior_position = True
     try:
         result = pycolmap.incremental_mapping(str(database), str(image_dir), str(output_dir), options=options)
     except RuntimeError as error:

@@ -283,7 +283,9 @@ def run_quicklook(
     pairs_matched, inliers = colmap.verified_matches(db)
     t = time.perf_counter()
     say("mapping: incremental")
-    models = colmap.incremental_mapping(db, block.image_dir, folder / "sparse")
+    models = colmap.incremental_mapping(
+        db, block.image_dir, folder / "sparse", use_priors=int(block.has_position.sum()) >= 3
+    )
     timings["mapping_s"] = time.perf_counter() - t
     geo: Georegistration | None = None
     comparison: Comparison | None = None
