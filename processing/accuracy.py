@@ -79,7 +79,9 @@ class PinholeView:
     def rays(self, pixels_xy: F64) -> F64:
         px = np.atleast_2d(np.asarray(pixels_xy, dtype=np.float64))
         cx, cy = self.principal_xy_px
-        cam = np.column_stack([(px[:, 0] - cx) / self.focal_px, (px[:, 1] - cy) / self.focal_px, np.ones(len(px))])
+        cam = np.column_stack(
+            [(px[:, 0] - cx) / self.focal_px, (px[:, 1] - cy) / self.focal_px, np.ones(len(px))]
+        )
         world = cam @ self.cam_from_world_rotation  # R^T applied to rows
         return np.asarray(world / np.linalg.norm(world, axis=1, keepdims=True), dtype=np.float64)
 
@@ -87,7 +89,9 @@ class PinholeView:
         p = np.atleast_2d(np.asarray(points, dtype=np.float64))
         cam = p @ self.cam_from_world_rotation.T + self.cam_from_world_translation
         cx, cy = self.principal_xy_px
-        return np.column_stack([self.focal_px * cam[:, 0] / cam[:, 2] + cx, self.focal_px * cam[:, 1] / cam[:, 2] + cy])
+        return np.column_stack(
+            [self.focal_px * cam[:, 0] / cam[:, 2] + cx, self.focal_px * cam[:, 1] / cam[:, 2] + cy]
+        )
 
 
 def intersect_rays(origins: F64, directions: F64) -> F64:
@@ -113,9 +117,7 @@ class Triangulated:
     reason: str = ""
 
 
-def triangulate(
-    name: str, observations: Sequence[Observation], views: Mapping[str, View]
-) -> Triangulated:
+def triangulate(name: str, observations: Sequence[Observation], views: Mapping[str, View]) -> Triangulated:
     """The point seen by ``observations``, from the views of the registered frames."""
     used = [o for o in observations if o.image in views]
     missing = tuple(o.image for o in observations if o.image not in views)
@@ -239,7 +241,10 @@ class AccuracyResult:
             "points": [vars(r) for r in self.residuals],
             "unused_points": [{"name": t.name, "reason": t.reason} for t in self.unused],
             "textbook": {
-                "check_rmse_to_range": [f"1:{TEXTBOOK_RATIO_RANGE[0]:.0f}", f"1:{TEXTBOOK_RATIO_RANGE[1]:.0f}"],
+                "check_rmse_to_range": [
+                    f"1:{TEXTBOOK_RATIO_RANGE[0]:.0f}",
+                    f"1:{TEXTBOOK_RATIO_RANGE[1]:.0f}",
+                ],
                 "smith_vericat_mean": f"1:{SMITH_VERICAT_RATIO:.0f}",
             },
         }
@@ -268,7 +273,8 @@ def assess_accuracy(
     if len(usable_control) < MIN_CONTROL_POINTS:
         detail = "; ".join(f"{t.name}: {t.reason}" for t in unused if t.name in control)
         raise AccuracyError(
-            f"only {len(usable_control)} control point(s) could be triangulated ({', '.join(usable_control)}); "
+            f"only {len(usable_control)} control point(s) could be triangulated "
+            f"({', '.join(usable_control)}); "
             f"{MIN_CONTROL_POINTS} are needed to place the block"
             + (f" ({detail})" if detail else "")
             + "; measure each control point in at least two frames that registered, or use fewer check points"
@@ -340,6 +346,7 @@ def table_3_2(result: AccuracyResult) -> str:
         )
     lines.append(
         f"textbook (seed 3-3.7, Table 3-2): check points 1:{TEXTBOOK_RATIO_RANGE[0]:.0f} to "
-        f"1:{TEXTBOOK_RATIO_RANGE[1]:.0f} at 75.6 m; Smith and Vericat (2015) mean 1:{SMITH_VERICAT_RATIO:.0f}"
+        f"1:{TEXTBOOK_RATIO_RANGE[1]:.0f} at 75.6 m; Smith and Vericat (2015) mean "
+        f"1:{SMITH_VERICAT_RATIO:.0f}"
     )
     return "\n".join(lines)

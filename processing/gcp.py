@@ -216,9 +216,7 @@ def read_csv_gcp(path: str | os.PathLike[str], *, crs: str | None = None) -> Gcp
         xc, yc = lon_col, lat_col
     elif east_col is not None and north_col is not None:
         if crs is None:
-            raise GcpError(
-                f"{p}: easting/northing columns need their CRS: pass --gcp-crs (e.g. EPSG:32611)"
-            )
+            raise GcpError(f"{p}: easting/northing columns need their CRS: pass --gcp-crs (e.g. EPSG:32611)")
         the_crs = _crs(crs, "--gcp-crs")
         xc, yc = east_col, north_col
     else:

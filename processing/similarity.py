@@ -38,7 +38,9 @@ class Similarity:
 
     def inverse(self) -> Similarity:
         rt = self.rotation.T
-        return Similarity(scale=1.0 / self.scale, rotation=rt, translation_m=-(rt @ self.translation_m) / self.scale)
+        return Similarity(
+            scale=1.0 / self.scale, rotation=rt, translation_m=-(rt @ self.translation_m) / self.scale
+        )
 
     @property
     def rotation_angle_deg(self) -> float:

@@ -105,7 +105,7 @@ def proj_string(frame: LocalFrame) -> str:
 
 def _camera(intr: Intrinsics) -> Camera:
     """A planner Camera for the footprints of images of this camera."""
-    make, model, focal, w, h = intr.key
+    make, model, _, w, h = intr.key
     if intr.focal_length_mm and intr.pixel_pitch_mm:
         f_mm, pitch = intr.focal_length_mm, intr.pixel_pitch_mm
     else:  # the footprint only needs the field of view: a nominal 1 um pixel
@@ -145,7 +145,13 @@ def read_block(
     for k, t in enumerate(tags):
         if not t.width_px or not t.height_px:
             raise HandoffInputError(f"{t.path}: the image size cannot be read; remove or replace the file")
-        key = (t.make or "", t.model or "", float(t.focal_length_mm or 0.0), int(t.width_px), int(t.height_px))
+        key = (
+            t.make or "",
+            t.model or "",
+            float(t.focal_length_mm or 0.0),
+            int(t.width_px),
+            int(t.height_px),
+        )
         groups.setdefault(key, []).append(k)
     intrinsics: list[Intrinsics] = []
     camera_of = np.zeros(len(tags), dtype=np.intp)
@@ -190,12 +196,16 @@ def read_block(
     rows_list: list[NDArray[np.intp]] = []
     reference: AltitudeReference | None = None
     for c, intr in enumerate(intrinsics):
-        members = [tags[k] for k in range(n) if camera_of[k] == c]
+        group = [tags[k] for k in range(n) if camera_of[k] == c]
         positioned = [
             t
-            for t in members
+            for t in group
             if (t.gps_lat_deg is not None or t.dji_lat_deg is not None)
-            and (t.gps_alt_amsl_m is not None or t.dji_alt_rel_home_m is not None or t.dji_alt_amsl_m is not None)
+            and (
+                t.gps_alt_amsl_m is not None
+                or t.dji_alt_rel_home_m is not None
+                or t.dji_alt_amsl_m is not None
+            )
         ]
         if not positioned:
             continue
@@ -244,7 +254,10 @@ def read_block(
             f"{DEFAULT_SIGMA_Z_M:g} m"
         )
     else:
-        source = f"default {DEFAULT_SIGMA_XY_M:g} m horizontal, {DEFAULT_SIGMA_Z_M:g} m vertical (no accuracy tags)"
+        source = (
+            f"default {DEFAULT_SIGMA_XY_M:g} m horizontal, {DEFAULT_SIGMA_Z_M:g} m vertical "
+            "(no accuracy tags)"
+        )
     sxy = np.where(tagged, sxy, DEFAULT_SIGMA_XY_M)
     sz = np.where(tagged, sz, DEFAULT_SIGMA_Z_M)
     return Block(

@@ -288,7 +288,9 @@ def transform_model(model: ColmapModel, scale: float, rotation: F64, translation
     """The model moved by ``x -> scale * rotation @ x + translation`` (new views and points)."""
     import pycolmap
 
-    sim = pycolmap.Sim3d(scale, pycolmap.Rotation3d(np.asarray(rotation, dtype=np.float64)), np.asarray(translation))
+    sim = pycolmap.Sim3d(
+        scale, pycolmap.Rotation3d(np.asarray(rotation, dtype=np.float64)), np.asarray(translation)
+    )
     model.handle.transform(sim)
     return _wrap(model.handle)
 

@@ -57,7 +57,10 @@ def project_info(prepared: Prepared) -> dict[str, Any]:
         },
         "prior_sigma_source": block.sigma_source,
         "ground": prepared.ground_description,
-        "cameras": [i.as_dict() | {"images": int((block.camera_index == c).sum())} for c, i in enumerate(block.intrinsics)],
+        "cameras": [
+            i.as_dict() | {"images": int((block.camera_index == c).sum())}
+            for c, i in enumerate(block.intrinsics)
+        ],
         "pairs": {"count": len(pairs), "possible": n * (n - 1) // 2, "by_reason": reasons},
         "notes": list(block.notes) + list(pairs.notes),
         "engine": f"pycolmap {colmap.version()}",
@@ -74,11 +77,17 @@ def write_colmap_project(prepared: Prepared, folder: Path) -> dict[str, Any]:
         )
         for i in block.intrinsics
     ]
-    by_camera = [[block.names[k] for k in np.flatnonzero(block.camera_index == c)] for c in range(len(cameras))]
+    by_camera = [
+        [block.names[k] for k in np.flatnonzero(block.camera_index == c)] for c in range(len(cameras))
+    ]
     priors = [
         colmap.PriorSpec(
             name=block.names[k],
-            position_m=(float(block.position_m[k, 0]), float(block.position_m[k, 1]), float(block.position_m[k, 2])),
+            position_m=(
+                float(block.position_m[k, 0]),
+                float(block.position_m[k, 1]),
+                float(block.position_m[k, 2]),
+            ),
             sigma_xy_m=float(block.sigma_xy_m[k]),
             sigma_z_m=float(block.sigma_z_m[k]),
         )
@@ -90,7 +99,9 @@ def write_colmap_project(prepared: Prepared, folder: Path) -> dict[str, Any]:
     info = project_info(prepared)
     (folder / PROJECT).write_text(json.dumps(info, indent=2), encoding="utf-8")
     (folder / "README.txt").write_text(
-        _README.format(n_pairs=len(prepared.pairs), n_all=info["pairs"]["possible"], image_dir=block.image_dir),
+        _README.format(
+            n_pairs=len(prepared.pairs), n_all=info["pairs"]["possible"], image_dir=block.image_dir
+        ),
         encoding="utf-8",
     )
     return info

@@ -55,7 +55,8 @@ def validate_control(gcps: GcpSet, block: Block, check_points: str | None) -> Co
         intr = block.intrinsics[block.camera_index[row[o.image]]]
         if not (0.0 <= o.x_px < intr.width_px and 0.0 <= o.y_px < intr.height_px):
             raise HandoffInputError(
-                f"{gcps.source}: point {o.point} in {o.image} at pixel ({o.x_px:g}, {o.y_px:g}) is outside the "
+                f"{gcps.source}: point {o.point} in {o.image} at pixel ({o.x_px:g}, {o.y_px:g}) is "
+                "outside the "
                 f"image ({intr.width_px} x {intr.height_px} px); pixel coordinates are from the top-left "
                 "corner of the full-size image (were they measured on a resized copy?)"
             )
@@ -81,7 +82,8 @@ def validate_control(gcps: GcpSet, block: Block, check_points: str | None) -> Co
         )
     if all(gcps.point(n).elevation_m == 0.0 for n in gcps.names):
         notes.append(
-            "every elevation in the GCP file is 0.0: the surveyed heights are unknown, so Z residuals measure the "
+            "every elevation in the GCP file is 0.0: the surveyed heights are unknown, so Z "
+            "residuals measure the "
             "terrain's height above the 0.0 datum, not the model's error; trust X and Y only"
         )
     return ControlPlan(
@@ -114,7 +116,9 @@ def check_distances(plan: ControlPlan, result: AccuracyResult) -> list[dict[str,
         for b in names[k + 1 :]:
             surveyed = float(np.linalg.norm(plan.ground_xyz_m[a][:2] - plan.ground_xyz_m[b][:2]))
             model = float(np.linalg.norm(result.placed_xyz_m[a][:2] - result.placed_xyz_m[b][:2]))
-            rows.append({"a": a, "b": b, "surveyed_m": surveyed, "model_m": model, "difference_m": model - surveyed})
+            rows.append(
+                {"a": a, "b": b, "surveyed_m": surveyed, "model_m": model, "difference_m": model - surveyed}
+            )
     return rows
 
 

@@ -119,7 +119,9 @@ def intrinsics_for(
             focal_px=camera.focal_length_mm / pitch,
             focal_length_mm=camera.focal_length_mm,
             pixel_pitch_mm=pitch,
-            source=f"camera database: {camera.id} ({camera.focal_length_mm:g} mm / {pitch * 1000:.3f} um pixels)",
+            source=(
+                f"camera database: {camera.id} ({camera.focal_length_mm:g} mm / {pitch * 1000:.3f} um pixels)"
+            ),
         )
     tags = _focal_plane_tags(sample_path)
     resolution = _rational(tags.get("Exif.Photo.FocalPlaneXResolution"))

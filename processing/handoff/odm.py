@@ -47,8 +47,10 @@ def odm_options(block: Block, pairs: ImagePairs) -> list[dict[str, Any]]:
     if block.has_position.any():
         sigma = float(np.median(block.sigma_xy_m[block.has_position]))
         options.append({"name": "gps-accuracy", "value": round(max(sigma, 0.01), 2)})
-    partners = np.bincount(np.concatenate([pairs.i, pairs.j]), minlength=len(block)) if len(pairs) else np.zeros(1)
-    neighbours = int(math.ceil(float(np.percentile(partners, 90)))) if len(pairs) else 0
+    partners = (
+        np.bincount(np.concatenate([pairs.i, pairs.j]), minlength=len(block)) if len(pairs) else np.zeros(1)
+    )
+    neighbours = math.ceil(float(np.percentile(partners, 90))) if len(pairs) else 0
     if block.has_position.all() and neighbours > 0:
         options.append({"name": "matcher-neighbors", "value": neighbours})
     return options
@@ -67,7 +69,8 @@ def geo_txt(block: Block) -> str | None:
     for k, n in enumerate(block.names):
         if block.has_position[k]:
             lines.append(
-                f"{n} {block.lon_deg[k]:.8f} {block.lat_deg[k]:.8f} {block.alt_m[k]:.3f} {yaw[n]:.2f} {pitch[n]:.2f} "
+                f"{n} {block.lon_deg[k]:.8f} {block.lat_deg[k]:.8f} {block.alt_m[k]:.3f} "
+                f"{yaw[n]:.2f} {pitch[n]:.2f} "
                 f"{roll[n]:.2f} {block.sigma_xy_m[k]:.3f} {block.sigma_z_m[k]:.3f}"
             )
     return "\n".join(lines) + "\n"
@@ -105,7 +108,9 @@ def write_odm_project(block: Block, pairs: ImagePairs, gcps: GcpSet | None, fold
     (folder / "odm_args.txt").write_text(args + "\n", encoding="utf-8")
     notes = []
     if geo is None:
-        notes.append("no image has a position: no geo.txt (ODM places the model by gcp_list.txt or not at all)")
+        notes.append(
+            "no image has a position: no geo.txt (ODM places the model by gcp_list.txt or not at all)"
+        )
     return {"options": options, "odm_args": args, "notes": notes}
 
 
@@ -159,12 +164,17 @@ def write_reference(block: Block, gcps: GcpSet | None, folder: Path, engine: str
                 f"{p.name},{p.lon_deg:.8f},{p.lat_deg:.8f},{p.elevation_m:.3f},0.02" for p in gcps.points
             ]
             (folder / "markers_reference.csv").write_text("\n".join(markers) + "\n", encoding="utf-8")
-            proj = ["marker,image,x_px,y_px"] + [f"{o.point},{o.image},{o.x_px:.2f},{o.y_px:.2f}" for o in gcps.observations]
+            proj = ["marker,image,x_px,y_px"] + [
+                f"{o.point},{o.image},{o.x_px:.2f},{o.y_px:.2f}" for o in gcps.observations
+            ]
             (folder / "marker_projections.csv").write_text("\n".join(proj) + "\n", encoding="utf-8")
             gcp_text = (
-                "markers_reference.csv  ground control as markers: Reference pane > Import (marker labels, WGS 84).\n"
-                "marker_projections.csv where each marker is in each image (pixels from the top-left corner): place\n"
-                "                       each marker on its images (right-click the image > Place Marker) at these pixels.\n"
+                "markers_reference.csv  ground control as markers: Reference pane > Import (marker "
+                "labels, WGS 84).\n"
+                "marker_projections.csv where each marker is in each image (pixels from the "
+                "top-left corner): place\n"
+                "                       each marker on its images (right-click the image > Place "
+                "Marker) at these pixels.\n"
             )
         else:
             pts = ["label,latitude,longitude,altitude"] + [
@@ -174,9 +184,11 @@ def write_reference(block: Block, gcps: GcpSet | None, folder: Path, engine: str
             marks = [f"{o.image},{o.point},{o.x_px:.2f},{o.y_px:.2f}" for o in gcps.observations]
             (folder / "gcp_image_marks.csv").write_text("\n".join(marks) + "\n", encoding="utf-8")
             gcp_text = (
-                "gcps_pix4d.csv       ground control: Project > GCP/MTP Manager > Import GCPs... (Latitude, Longitude,\n"
+                "gcps_pix4d.csv       ground control: Project > GCP/MTP Manager > Import GCPs... "
+                "(Latitude, Longitude,\n"
                 "                     Altitude order: choose 'Lat, Long, Alt').\n"
-                "gcp_image_marks.csv  image marks: GCP/MTP Manager > Import Marks... (image, label, x, y in pixels).\n"
+                "gcp_image_marks.csv  image marks: GCP/MTP Manager > Import Marks... (image, label, "
+                "x, y in pixels).\n"
             )
     name = "cameras_reference.csv" if engine == "metashape" else "cameras_pix4d.csv"
     (folder / name).write_text("\n".join(rows) + ("\n" if rows else ""), encoding="utf-8")

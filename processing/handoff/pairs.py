@@ -93,7 +93,10 @@ def footprint_pairs(
         fp = _concat(fps)
         invalid = [block.names[rows[k]] for k in np.flatnonzero(~fp.valid)]
         if invalid:
-            notes.append(f"{len(invalid)} frame(s) have no footprint (paired along their line only): {', '.join(invalid)}")
+            notes.append(
+                f"{len(invalid)} frame(s) have no footprint (paired along their line only): "
+                f"{', '.join(invalid)}"
+            )
         ov = overlapping_pairs(fp, ground, block.frame, min_overlap_pct=min_overlap_pct)
         for a, b, pa, pb in zip(ov.i, ov.j, ov.overlap_i_pct, ov.overlap_j_pct, strict=True):
             key = (int(min(rows[a], rows[b])), int(max(rows[a], rows[b])))
@@ -116,10 +119,10 @@ def footprint_pairs(
             found[(a, b)] = ("exhaustive", 0.0)
         notes.append(f"no image has a position: all {len(found)} pairs are matched (exhaustive)")
     elif len(unpositioned):
-        for a in unpositioned:
+        for a in (int(v) for v in unpositioned):
             for b in range(n):
                 if b != a:
-                    found.setdefault((int(min(a, b)), int(max(a, b))), ("no position", 0.0))
+                    found.setdefault((min(a, b), max(a, b)), ("no position", 0.0))
         notes.append(f"{len(unpositioned)} image(s) without a position are paired with every other image")
     keys = sorted(found)
     return ImagePairs(

@@ -42,7 +42,7 @@ class HandoffOptions:
     gcp: Path | None = None
     gcp_crs: str | None = None
     check_points: str | None = None
-    ground: GroundOptions = GroundOptions()
+    ground: GroundOptions = field(default_factory=GroundOptions)
     min_overlap_pct: float = 5.0
     line_neighbours: int = 2
     max_image_size_px: int = DEFAULT_MAX_IMAGE_SIZE_PX
@@ -86,14 +86,21 @@ def handoff(
     say = progress or (lambda text: None)
     say("reading the frames")
     prepared = prepare(
-        images, ground=options.ground, min_overlap_pct=options.min_overlap_pct, line_neighbours=options.line_neighbours
+        images,
+        ground=options.ground,
+        min_overlap_pct=options.min_overlap_pct,
+        line_neighbours=options.line_neighbours,
     )
     gcps, plan = _load_control(options, prepared)
     from .colmap_project import project_info
 
     report: dict[str, Any] = {"engine": options.engine.value, "project": project_info(prepared)}
     if plan is not None:
-        report["control"] = {"control": list(plan.control), "check": list(plan.check), "notes": list(plan.notes)}
+        report["control"] = {
+            "control": list(plan.control),
+            "check": list(plan.check),
+            "notes": list(plan.notes),
+        }
     quick: QuickLook | None = None
     exit_code = 0
     with staged_output_dir(work, overwrite=options.overwrite) as stage:
@@ -105,7 +112,9 @@ def handoff(
             if options.run:
                 from .quicklook import run_quicklook
 
-                quick = run_quicklook(prepared, stage, max_image_size_px=options.max_image_size_px, progress=say)
+                quick = run_quicklook(
+                    prepared, stage, max_image_size_px=options.max_image_size_px, progress=say
+                )
                 report["quicklook"] = quicklook_dict(quick)
                 if not quick.reconstructs:
                     exit_code = 1

@@ -33,13 +33,14 @@ class Prepared:
 def prepare(
     images: str | os.PathLike[str],
     *,
-    ground: GroundOptions = GroundOptions(),
+    ground: GroundOptions | None = None,
     min_overlap_pct: float = DEFAULT_MIN_OVERLAP_PCT,
     line_neighbours: int = DEFAULT_LINE_NEIGHBOURS,
     progress: Callable[[int], None] | None = None,
 ) -> Prepared:
     """Read the block, choose the ground (:func:`processing.inputs.ground_from_options`: the
     same rules and messages as ``sfap check``) and the pairs."""
+    ground = ground or GroundOptions()
     block = read_block(images, progress=progress)
     chosen: Ground | None = None
     description = "none (no image has a position)"

@@ -92,7 +92,9 @@ class Comparison:
             "covered_cells": self.covered_cells,
             "covered_but_empty_cells": self.covered_empty_cells,
             "covered_but_empty_area_m2": self.covered_empty_area_m2,
-            "covered_but_empty_pct": 100.0 * self.covered_empty_cells / self.covered_cells if self.covered_cells else None,
+            "covered_but_empty_pct": 100.0 * self.covered_empty_cells / self.covered_cells
+            if self.covered_cells
+            else None,
             "covered_but_empty_centres_lonlat": [list(p) for p in self.covered_empty_lonlat],
             "check_gap_area_m2": self.check_gap_area_m2,
             "check_passed": self.check_passed,
@@ -155,8 +157,13 @@ class QuickLook:
         return (
             "the block did NOT reconstruct: "
             + "; ".join(parts)
-            + (". Frames not registered (verified matches): " + ", ".join(f"{n} ({m})" for n, m in worst) if worst else "")
-            + ". Re-fly the gaps between the pieces with more overlap (sfap check --refly), or add cross lines "
+            + (
+                ". Frames not registered (verified matches): " + ", ".join(f"{n} ({m})" for n, m in worst)
+                if worst
+                else ""
+            )
+            + ". Re-fly the gaps between the pieces with more overlap (sfap check --refly), or add "
+            + "cross lines "
             "that tie the lines together; frames with few matches may be blurred or over uniform ground"
         )
 
@@ -211,14 +218,20 @@ def compare_with_check(prepared: Prepared, points_xyz: F64) -> Comparison | None
     result = run_check(frames, ground=prepared.ground, ground_description=prepared.ground_description)
     grid = result.grid
     to_check = Transformer.from_crs(block.frame.crs, result.frame.crs, always_xy=True)
-    x, y = to_check.transform(points_xyz[:, 0], points_xyz[:, 1]) if len(points_xyz) else (np.zeros(0), np.zeros(0))
+    x, y = (
+        to_check.transform(points_xyz[:, 0], points_xyz[:, 1])
+        if len(points_xyz)
+        else (np.zeros(0), np.zeros(0))
+    )
     cols = np.floor((np.asarray(x) - grid.west_m) / grid.cell_m).astype(np.int64)
     rows = np.floor((grid.north_m - np.asarray(y)) / grid.cell_m).astype(np.int64)
     inside = (rows >= 0) & (rows < grid.rows) & (cols >= 0) & (cols < grid.cols)
     fine = np.zeros(grid.shape, dtype=np.int32)
     np.add.at(fine, (rows[inside], cols[inside]), 1)
     # Sparse points are sparse: compare on blocks of cells about a tenth of a footprint wide.
-    fp_side = float(np.sqrt(np.median(prepared.pairs.footprints[0].area_m2))) if prepared.pairs.footprints else 50.0
+    fp_side = (
+        float(np.sqrt(np.median(prepared.pairs.footprints[0].area_m2))) if prepared.pairs.footprints else 50.0
+    )
     factor = max(1, round(fp_side / 10.0 / grid.cell_m))
     r2, c2 = math.ceil(grid.rows / factor), math.ceil(grid.cols / factor)
 
@@ -273,7 +286,9 @@ def run_quicklook(
     timings: dict[str, float] = {}
     t = time.perf_counter()
     say(f"features: SIFT on {len(block)} frames at {max_image_size_px} px")
-    colmap.extract_features(db, block.image_dir, block.names, max_image_size_px=max_image_size_px, max_features=max_features)
+    colmap.extract_features(
+        db, block.image_dir, block.names, max_image_size_px=max_image_size_px, max_features=max_features
+    )
     timings["features_s"] = time.perf_counter() - t
     keypoints = colmap.keypoint_counts(db)
     t = time.perf_counter()
@@ -302,7 +317,8 @@ def run_quicklook(
             comparison = compare_with_check(prepared, models[0].points_xyz)
         else:
             messages.append(
-                "the model is not georegistered: fewer than three registered frames have a position (or they lie "
+                "the model is not georegistered: fewer than three registered frames have a position "
+                "(or they lie "
                 "on a line); it stays in COLMAP's arbitrary frame"
             )
         timings["georegistration_s"] = time.perf_counter() - t

@@ -56,7 +56,9 @@ def quicklook_dict(q: QuickLook) -> dict[str, Any]:
     }
 
 
-def accuracy_dict(result: AccuracyResult, distances: list[dict[str, Any]], notes: tuple[str, ...]) -> dict[str, Any]:
+def accuracy_dict(
+    result: AccuracyResult, distances: list[dict[str, Any]], notes: tuple[str, ...]
+) -> dict[str, Any]:
     return result.as_dict() | {"check_distances": distances, "notes": list(notes)}
 
 
@@ -124,24 +126,70 @@ def accuracy_html(acc: dict[str, Any]) -> str:
                 ]
             )
     rows.append(
-        ["textbook (Table 3-2)", 9, "", "", "", "", "", "", "75.6", f"1:{TEXTBOOK_RATIO_RANGE[0]:.0f} to 1:{TEXTBOOK_RATIO_RANGE[1]:.0f}"]
+        [
+            "textbook (Table 3-2)",
+            9,
+            "",
+            "",
+            "",
+            "",
+            "",
+            "",
+            "75.6",
+            f"1:{TEXTBOOK_RATIO_RANGE[0]:.0f} to 1:{TEXTBOOK_RATIO_RANGE[1]:.0f}",
+        ]
     )
-    rows.append(["Smith and Vericat (2015), mean of 50", "", "", "", "", "", "", "", "", f"1:{SMITH_VERICAT_RATIO:.0f}"])
+    rows.append(
+        [
+            "Smith and Vericat (2015), mean of 50",
+            "",
+            "",
+            "",
+            "",
+            "",
+            "",
+            "",
+            "",
+            f"1:{SMITH_VERICAT_RATIO:.0f}",
+        ]
+    )
     out = "<h2>Accuracy at ground control and check points</h2>" + _table(
-        ["points", "n", "RMSE X m", "RMSE Y m", "RMSE Z m", "horizontal m", "total m", "image px", "range m", "RMSE:range"],
+        [
+            "points",
+            "n",
+            "RMSE X m",
+            "RMSE Y m",
+            "RMSE Z m",
+            "horizontal m",
+            "total m",
+            "image px",
+            "range m",
+            "RMSE:range",
+        ],
         rows,
     )
     out += _table(
         ["point", "role", "dX m", "dY m", "dZ m", "image px", "images"],
         [
-            [p["name"], p["role"], f"{p['dx_m']:.3f}", f"{p['dy_m']:.3f}", f"{p['dz_m']:.3f}", f"{p['image_rmse_px']:.2f}", p["n_images"]]
+            [
+                p["name"],
+                p["role"],
+                f"{p['dx_m']:.3f}",
+                f"{p['dy_m']:.3f}",
+                f"{p['dz_m']:.3f}",
+                f"{p['image_rmse_px']:.2f}",
+                p["n_images"],
+            ]
             for p in acc["points"]
         ],
     )
     if acc.get("check_distances"):
         out += "<h3>Distances between check points (horizontal)</h3>" + _table(
             ["a", "b", "surveyed m", "model m", "difference m"],
-            [[d["a"], d["b"], f"{d['surveyed_m']:.3f}", f"{d['model_m']:.3f}", f"{d['difference_m']:+.3f}"] for d in acc["check_distances"]],
+            [
+                [d["a"], d["b"], f"{d['surveyed_m']:.3f}", f"{d['model_m']:.3f}", f"{d['difference_m']:+.3f}"]
+                for d in acc["check_distances"]
+            ],
         )
     for u in acc.get("unused_points", []):
         out += f"<p>Not used: {html.escape(u['name'])}: {html.escape(u['reason'])}</p>"
@@ -153,14 +201,16 @@ def accuracy_html(acc: dict[str, Any]) -> str:
 def report_html(data: dict[str, Any], q: QuickLook | None) -> str:
     parts = [
         "<!doctype html><html><head><meta charset='utf-8'><title>sfap handoff</title><style>"
-        "body{font-family:sans-serif;max-width:1100px;margin:1em auto}table{border-collapse:collapse;margin:.6em 0}"
+        "body{font-family:sans-serif;max-width:1100px;margin:1em auto}"
+        "table{border-collapse:collapse;margin:.6em 0}"
         "td,th{border:1px solid #bbb;padding:2px 6px;text-align:right}.bad{color:#b00;font-weight:bold}"
         ".good{color:#060;font-weight:bold}</style></head><body><h1>Hand-off report</h1>"
     ]
     project = data.get("project", {})
     parts.append(
         f"<p>{project.get('images')} frames, {project.get('positioned')} with a position; "
-        f"{project.get('pairs', {}).get('count')} pairs of {project.get('pairs', {}).get('possible')} possible. "
+        f"{project.get('pairs', {}).get('count')} pairs of "
+        f"{project.get('pairs', {}).get('possible')} possible. "
         f"Local frame: <code>{html.escape(str(project.get('local_frame', {}).get('proj')))}</code></p>"
     )
     for note in project.get("notes", []):
@@ -174,7 +224,10 @@ def report_html(data: dict[str, Any], q: QuickLook | None) -> str:
             ["models (frames each)", ", ".join(map(str, ql["models"])) or "none"],
             ["3D points", ql["points3d"]],
             ["mean track length", f"{ql['mean_track_length']:.2f}" if ql["mean_track_length"] else "-"],
-            ["mean reprojection error, px", f"{ql['mean_reprojection_error_px']:.2f}" if ql["mean_reprojection_error_px"] else "-"],
+            [
+                "mean reprojection error, px",
+                f"{ql['mean_reprojection_error_px']:.2f}" if ql["mean_reprojection_error_px"] else "-",
+            ],
             ["features on frames of, px", ql["max_image_size_px"]],
         ]
         geo = ql.get("georegistration")
@@ -188,13 +241,19 @@ def report_html(data: dict[str, Any], q: QuickLook | None) -> str:
         parts.append(_table(["", ""], rows))
         if ql["not_registered"]:
             parts.append("<h2>Frames not registered</h2>")
-            parts.append(_table(["frame", "verified matches"], [[r["name"], r["verified_matches"]] for r in ql["not_registered"]]))
+            parts.append(
+                _table(
+                    ["frame", "verified matches"],
+                    [[r["name"], r["verified_matches"]] for r in ql["not_registered"]],
+                )
+            )
         cmp_ = ql.get("check_vs_reconstruction")
         if cmp_:
             parts.append(
                 "<h2>What the check predicted against what reconstructed</h2>"
                 f"<p>{cmp_['covered_cells']} cells of {cmp_['cell_m']:g} m seen by two frames or more; "
-                f"{cmp_['covered_but_empty_cells']} of them ({cmp_['covered_but_empty_area_m2']:.0f} m2) have no "
+                f"{cmp_['covered_but_empty_cells']} of them "
+                f"({cmp_['covered_but_empty_area_m2']:.0f} m2) have no "
                 f"sparse point. The check's gaps: {cmp_['check_gap_area_m2']:.0f} m2.</p>"
             )
             png = comparison_png(q) if q is not None else None

@@ -29,9 +29,16 @@ _ENGINES = [e.value for e in Engine]
     "(reference CSVs).",
 )
 @click.option(
-    "-o", "--output", "work", required=True, type=click.Path(file_okay=False, path_type=Path), help="Project folder."
+    "-o",
+    "--output",
+    "work",
+    required=True,
+    type=click.Path(file_okay=False, path_type=Path),
+    help="Project folder.",
 )
-@click.option("--run", is_flag=True, help="colmap: extract, match the footprint pairs, map, georegister, report.")
+@click.option(
+    "--run", is_flag=True, help="colmap: extract, match the footprint pairs, map, georegister, report."
+)
 @click.option(
     "--gcp",
     type=click.Path(exists=True, dir_okay=False, path_type=Path),
@@ -43,7 +50,9 @@ _ENGINES = [e.value for e in Engine]
     default=None,
     help="Check points kept out of the fit: names separated by commas, or a count (spread over the block).",
 )
-@click.option("--dem", type=click.Path(exists=True, dir_okay=False, path_type=Path), help="Ground DEM, GeoTIFF, m AMSL.")
+@click.option(
+    "--dem", type=click.Path(exists=True, dir_okay=False, path_type=Path), help="Ground DEM, GeoTIFF, m AMSL."
+)
 @click.option("--ground-elevation-m", type=float, default=None, help="Flat ground at this elevation, m AMSL.")
 @click.option("--takeoff-elevation-m", type=float, default=None, help="Take-off elevation, m AMSL.")
 @click.option(
@@ -99,7 +108,9 @@ def command(
         gcp=gcp,
         gcp_crs=gcp_crs,
         check_points=check_points,
-        ground=GroundOptions(dem=dem, ground_elevation_m=ground_elevation_m, takeoff_elevation_m=takeoff_elevation_m),
+        ground=GroundOptions(
+            dem=dem, ground_elevation_m=ground_elevation_m, takeoff_elevation_m=takeoff_elevation_m
+        ),
         min_overlap_pct=min_overlap_pct,
         max_image_size_px=max_image_size_px,
         overwrite=overwrite,
@@ -126,14 +137,26 @@ def _present(result: HandoffResult, as_json: bool) -> None:
     ql = report.get("quicklook")
     if ql:
         rows += [
-            ("registered", f"{ql['frames_registered']} of {ql['frames_total']} frames; models {ql['models']}"),
+            (
+                "registered",
+                f"{ql['frames_registered']} of {ql['frames_total']} frames; models {ql['models']}",
+            ),
             ("3D points", str(ql["points3d"])),
             ("mean track length", f"{ql['mean_track_length']:.2f}" if ql["mean_track_length"] else "-"),
-            ("reprojection error", f"{ql['mean_reprojection_error_px']:.2f} px" if ql["mean_reprojection_error_px"] else "-"),
+            (
+                "reprojection error",
+                f"{ql['mean_reprojection_error_px']:.2f} px" if ql["mean_reprojection_error_px"] else "-",
+            ),
         ]
         geo = ql.get("georegistration")
         if geo:
-            rows.append(("cameras vs GPS", f"RMSE {geo['camera_rmse_horizontal_m']:.2f} m horizontal, {geo['camera_rmse_vertical_m']:.2f} m vertical"))
+            rows.append(
+                (
+                    "cameras vs GPS",
+                    f"RMSE {geo['camera_rmse_horizontal_m']:.2f} m horizontal, "
+                    f"{geo['camera_rmse_vertical_m']:.2f} m vertical",
+                )
+            )
     echo_table(rows, title=f"{report['engine']} project: {result.work}")
     for note in project["notes"]:
         click.echo(f"note: {note}", err=True)

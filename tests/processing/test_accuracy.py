@@ -64,7 +64,9 @@ def _scene(sigma_px: float, seed: int) -> dict[str, object]:
         for k, c in enumerate(centres):
             rg, tg = _nadir_cam_from_world(c)
             cam = rg @ xyz + tg
-            px = np.array([FOCAL_PX * cam[0] / cam[2] + WIDTH_PX / 2, FOCAL_PX * cam[1] / cam[2] + HEIGHT_PX / 2])
+            px = np.array(
+                [FOCAL_PX * cam[0] / cam[2] + WIDTH_PX / 2, FOCAL_PX * cam[1] / cam[2] + HEIGHT_PX / 2]
+            )
             if 0 <= px[0] < WIDTH_PX and 0 <= px[1] < HEIGHT_PX:
                 px = px + rng.normal(scale=sigma_px, size=2) if sigma_px > 0 else px
                 obs.append(Observation(point=n, image=f"img{k}.jpg", x_px=float(px[0]), y_px=float(px[1])))
@@ -75,7 +77,11 @@ def test_noise_free_scene_is_placed_exactly() -> None:
     sc = _scene(0.0, seed=1)
     names = sc["names"]
     result = assess_accuracy(
-        ground_xyz_m=sc["ground"], observations=sc["obs"], views=sc["views"], control=names[:6], check=names[6:]
+        ground_xyz_m=sc["ground"],
+        observations=sc["obs"],
+        views=sc["views"],
+        control=names[:6],
+        check=names[6:],
     )
     # The fitted ground-from-model similarity is the inverse of the scene's model-from-ground.
     assert result.similarity.scale == pytest.approx(1 / sc["s"], rel=1e-9)
@@ -96,7 +102,11 @@ def test_check_point_rmse_follows_the_injected_noise(sigma_px: float) -> None:
         sc = _scene(sigma_px, seed=100 + seed)
         names = sc["names"]
         r = assess_accuracy(
-            ground_xyz_m=sc["ground"], observations=sc["obs"], views=sc["views"], control=names[:6], check=names[6:]
+            ground_xyz_m=sc["ground"],
+            observations=sc["obs"],
+            views=sc["views"],
+            control=names[:6],
+            check=names[6:],
         )
         assert r.check is not None
         rows.append(r.check)

@@ -4,7 +4,6 @@ parser), and the pairs against the analytic overlap of nadir rectangles on a syn
 
 from __future__ import annotations
 
-import io
 import re
 import sqlite3
 import struct
@@ -14,83 +13,31 @@ import exifread
 import numpy as np
 import pyexiv2
 import pytest
-from PIL import Image
+from handoff_grid import F_MM, FOOT_X_M, FOOT_Y_M, H_PX, HEIGHT_M, PITCH_MM, W_PX, grid
 from pyproj import Geod
 from shared_data import SHARED_DATA
 
-from acquisition.exif import GeoTag, geotag_bytes
 from processing.handoff.block import DEFAULT_SIGMA_XY_M, read_block
 from processing.handoff.colmap_project import write_colmap_project
 from processing.handoff.errors import HandoffInputError
 from processing.handoff.pipeline import Engine, HandoffOptions, handoff
 from processing.handoff.prepare import GroundOptions, prepare
 
-GARFIELD = SHARED_DATA / "garfield_rgb"
-GARFIELD_GROUND_M = 258.0  # as tests/processing/test_check.py: the ground near Garfield Heights
-
-# Synthetic camera: 320 x 240 px of 0.02 mm (6.4 x 4.8 mm sensor), 4 mm lens; at 100 m a nadir
-# footprint is 160 m east-west (image width, yaw 0) by 120 m north-south.
-W_PX, H_PX, PITCH_MM, F_MM, HEIGHT_M = 320, 240, 0.02, 4.0, 100.0
-FOOT_X_M = W_PX * PITCH_MM / F_MM * HEIGHT_M
-FOOT_Y_M = H_PX * PITCH_MM / F_MM * HEIGHT_M
-LAT0, LON0 = 45.0, 7.0
 _GEOD = Geod(ellps="WGS84")
 
-
-def _jpeg(make: str = "TestCam", model: str = "Grid1") -> bytes:
-    pixels = np.random.default_rng(0).integers(0, 256, size=(H_PX, W_PX, 3), dtype=np.uint8)
-    buffer = io.BytesIO()
-    Image.fromarray(pixels).save(buffer, format="JPEG", quality=85)
-    image = pyexiv2.ImageData(buffer.getvalue())
-    image.modify_exif(
-        {
-            "Exif.Image.Make": make,
-            "Exif.Image.Model": model,
-            "Exif.Photo.FocalLength": f"{int(F_MM * 100)}/100",
-            "Exif.Photo.FocalPlaneXResolution": f"{int(1 / PITCH_MM * 1000)}/1000",
-            "Exif.Photo.FocalPlaneYResolution": f"{int(1 / PITCH_MM * 1000)}/1000",
-            "Exif.Photo.FocalPlaneResolutionUnit": "4",
-        }
-    )
-    data = image.get_bytes()
-    image.close()
-    return bytes(data)
-
-
-def _grid(folder: Path, *, lines: int, per_line: int, dx_m: float, dy_m: float, positioned: bool = True) -> list[tuple[str, float, float, int]]:
-    """Lines flown north then south (boustrophedon), nadir, image top north. Returns (name, x, y, line)."""
-    folder.mkdir(parents=True, exist_ok=True)
-    base = _jpeg()
-    out = []
-    k = 0
-    for line in range(lines):
-        ys = [s * dy_m for s in range(per_line)]
-        for y in ys if line % 2 == 0 else ys[::-1]:
-            x = line * dx_m
-            name = f"F{k:03d}.jpg"
-            lon, lat, _ = _GEOD.fwd(LON0, LAT0, 90.0, x) if x else (LON0, LAT0, 0)
-            lon, lat, _ = _GEOD.fwd(lon, lat, 0.0, y) if y else (lon, lat, 0)
-            tag = GeoTag(
-                lat_deg=lat,
-                lon_deg=lon,
-                alt_amsl_m=HEIGHT_M,
-                time_utc_s=1.7e9 + 3.0 * k,
-                yaw_deg=0.0,
-                pitch_deg=0.0,
-                roll_deg=0.0,
-                xy_accuracy_m=1.5,
-                z_accuracy_m=3.0,
-            )
-            (folder / name).write_bytes(geotag_bytes(base, tag) if positioned else base)
-            out.append((name, float(x), float(y), line))
-            k += 1
-    return out
+GARFIELD = SHARED_DATA / "garfield_rgb"
+GARFIELD_GROUND_M = 258.0  # as tests/processing/test_check.py: the ground near Garfield Heights
 
 
 def _analytic_overlap_pct(a: tuple[str, float, float, int], b: tuple[str, float, float, int]) -> float:
     ox = max(0.0, FOOT_X_M - abs(a[1] - b[1]))
     oy = max(0.0, FOOT_Y_M - abs(a[2] - b[2]))
     return 100.0 * ox * oy / (FOOT_X_M * FOOT_Y_M)
+
+
+def _deg(tags: dict, key: str) -> float:  # type: ignore[type-arg]
+    d, m, s = (float(v.num) / float(v.den) for v in tags[key].values)
+    return d + m / 60 + s / 3600
 
 
 def _pairs_file(path: Path) -> set[frozenset[str]]:
@@ -102,9 +49,13 @@ def _pairs_file(path: Path) -> set[frozenset[str]]:
 
 
 @pytest.mark.parametrize("min_overlap_pct", [5.0, 40.0, 70.0])
-def test_pairs_are_the_overlapping_footprints_and_the_line_neighbours(tmp_path: Path, min_overlap_pct: float) -> None:
-    frames = _grid(tmp_path / "img", lines=4, per_line=6, dx_m=110.0, dy_m=45.0)
-    prepared = prepare(tmp_path / "img", ground=GroundOptions(ground_elevation_m=0.0), min_overlap_pct=min_overlap_pct)
+def test_pairs_are_the_overlapping_footprints_and_the_line_neighbours(
+    tmp_path: Path, min_overlap_pct: float
+) -> None:
+    frames = grid(tmp_path / "img", lines=4, per_line=6, dx_m=110.0, dy_m=45.0)
+    prepared = prepare(
+        tmp_path / "img", ground=GroundOptions(ground_elevation_m=0.0), min_overlap_pct=min_overlap_pct
+    )
     write_colmap_project(prepared, tmp_path / "work")
     got = _pairs_file(tmp_path / "work" / "pairs.txt")
     expected = set()
@@ -112,7 +63,9 @@ def test_pairs_are_the_overlapping_footprints_and_the_line_neighbours(tmp_path: 
         for m, b in enumerate(frames):
             if m <= k:
                 continue
-            if _analytic_overlap_pct(a, b) >= min_overlap_pct * (1 - 1e-6) or (a[3] == b[3] and abs(k - m) <= 2):
+            if _analytic_overlap_pct(a, b) >= min_overlap_pct * (1 - 1e-6) or (
+                a[3] == b[3] and abs(k - m) <= 2
+            ):
                 expected.add(frozenset((a[0], b[0])))
     # Overlaps within a hair of the threshold may fall either way (float geometry).
     borderline = {
@@ -126,11 +79,13 @@ def test_pairs_are_the_overlapping_footprints_and_the_line_neighbours(tmp_path: 
 
 
 def test_database_holds_cameras_images_and_cartesian_priors(tmp_path: Path) -> None:
-    frames = _grid(tmp_path / "img", lines=2, per_line=4, dx_m=100.0, dy_m=40.0)
+    frames = grid(tmp_path / "img", lines=2, per_line=4, dx_m=100.0, dy_m=40.0)
     prepared = prepare(tmp_path / "img", ground=GroundOptions(ground_elevation_m=0.0))
     write_colmap_project(prepared, tmp_path / "work")
     con = sqlite3.connect(tmp_path / "work" / "database.db")
-    cams = con.execute("select camera_id, model, width, height, params, prior_focal_length from cameras").fetchall()
+    cams = con.execute(
+        "select camera_id, model, width, height, params, prior_focal_length from cameras"
+    ).fetchall()
     assert len(cams) == 1
     _, model, width, height, params, prior = cams[0]
     f, cx, cy, k1 = struct.unpack("<4d", params)
@@ -143,7 +98,11 @@ def test_database_holds_cameras_images_and_cartesian_priors(tmp_path: Path) -> N
     for data_id, position, cov, system in con.execute(
         "select corr_data_id, position, position_covariance, coordinate_system from pose_priors"
     ):
-        priors[names[data_id]] = (np.array(struct.unpack("<3d", position)), np.array(struct.unpack("<9d", cov)).reshape(3, 3), system)
+        priors[names[data_id]] = (
+            np.array(struct.unpack("<3d", position)),
+            np.array(struct.unpack("<9d", cov)).reshape(3, 3),
+            system,
+        )
     assert len(priors) == len(frames)
     assert {p[2] for p in priors.values()} == {1}  # CARTESIAN
     for _, cov, _ in priors.values():
@@ -154,11 +113,7 @@ def test_database_holds_cameras_images_and_cartesian_priors(tmp_path: Path) -> N
         with open(tmp_path / "img" / name, "rb") as handle:
             tags = exifread.process_file(handle, details=False)
 
-        def deg(key: str) -> float:
-            d, m, s = (float(v.num) / float(v.den) for v in tags[key].values)
-            return d + m / 60 + s / 3600
-
-        lonlat[name] = (deg("GPS GPSLongitude"), deg("GPS GPSLatitude"))
+        lonlat[name] = (_deg(tags, "GPS GPSLongitude"), _deg(tags, "GPS GPSLatitude"))
     items = sorted(priors)
     for a in items:
         for b in items:
@@ -169,7 +124,7 @@ def test_database_holds_cameras_images_and_cartesian_priors(tmp_path: Path) -> N
 
 
 def test_frames_without_position_get_no_prior_and_are_paired_with_all(tmp_path: Path) -> None:
-    _grid(tmp_path / "img", lines=1, per_line=5, dx_m=100.0, dy_m=40.0, positioned=False)
+    grid(tmp_path / "img", lines=1, per_line=5, dx_m=100.0, dy_m=40.0, positioned=False)
     block = read_block(tmp_path / "img")
     assert not block.has_position.any()
     assert any("no pose priors" in n for n in block.notes)
@@ -181,7 +136,7 @@ def test_frames_without_position_get_no_prior_and_are_paired_with_all(tmp_path: 
 
 
 def test_mixed_cameras_get_one_camera_each(tmp_path: Path) -> None:
-    _grid(tmp_path / "img", lines=1, per_line=3, dx_m=100.0, dy_m=40.0)
+    grid(tmp_path / "img", lines=1, per_line=3, dx_m=100.0, dy_m=40.0)
     other = pyexiv2.ImageData((tmp_path / "img" / "F000.jpg").read_bytes())
     other.modify_exif({"Exif.Image.Model": "Grid2", "Exif.Photo.FocalLength": "8/1"})
     (tmp_path / "img" / "F000.jpg").write_bytes(other.get_bytes())
@@ -195,12 +150,16 @@ def test_mixed_cameras_get_one_camera_each(tmp_path: Path) -> None:
 
 
 def test_existing_work_is_refused_and_nothing_is_half_written(tmp_path: Path) -> None:
-    _grid(tmp_path / "img", lines=1, per_line=3, dx_m=100.0, dy_m=40.0)
+    grid(tmp_path / "img", lines=1, per_line=3, dx_m=100.0, dy_m=40.0)
     work = tmp_path / "work"
     work.mkdir()
     (work / "keep.txt").write_text("x")
     with pytest.raises(Exception, match="--overwrite"):
-        handoff(tmp_path / "img", work, HandoffOptions(engine=Engine.COLMAP, ground=GroundOptions(ground_elevation_m=0.0)))
+        handoff(
+            tmp_path / "img",
+            work,
+            HandoffOptions(engine=Engine.COLMAP, ground=GroundOptions(ground_elevation_m=0.0)),
+        )
     assert sorted(p.name for p in work.iterdir()) == ["keep.txt"]
     # A failure midway (no ground for AMSL altitudes) leaves no staging folder behind.
     with pytest.raises(Exception, match="ground-elevation-m"):
