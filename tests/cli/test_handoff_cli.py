@@ -111,7 +111,7 @@ def test_odm_project_has_what_odm_reads(tmp_path: Path, block) -> None:  # type:
 
 
 @pytest.mark.parametrize("engine", ["metashape", "pix4d"])
-def test_reference_files_with_a_readme(tmp_path: Path, grid, engine: str) -> None:  # type: ignore[no-untyped-def]
+def test_reference_files_with_a_readme(tmp_path: Path, block, engine: str) -> None:  # type: ignore[no-untyped-def]
     images, frames = block
     gcp = _gcp_csv(tmp_path / "gcp.csv", frames, images)
     code, _, err = _run(
