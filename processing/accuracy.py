@@ -42,6 +42,9 @@ SMITH_VERICAT_RATIO = 639.0
 
 #: Fewest control points that fix a similarity.
 MIN_CONTROL_POINTS = 3
+#: A point whose triangulated position reprojects farther than this from one of its own
+#: observations (pixels) was marked inconsistently (a wrong target, a typo): listed, not used.
+MAX_TRIANGULATION_PX = 10.0
 
 
 class AccuracyError(SfapError):
@@ -117,8 +120,16 @@ class Triangulated:
     reason: str = ""
 
 
-def triangulate(name: str, observations: Sequence[Observation], views: Mapping[str, View]) -> Triangulated:
-    """The point seen by ``observations``, from the views of the registered frames."""
+def triangulate(
+    name: str,
+    observations: Sequence[Observation],
+    views: Mapping[str, View],
+    *,
+    max_error_px: float = MAX_TRIANGULATION_PX,
+) -> Triangulated:
+    """The point seen by ``observations``, from the views of the registered frames; None (with
+    the reason) when it is seen in fewer than two, its rays are nearly parallel, or it
+    reprojects more than ``max_error_px`` from one of its marks."""
     used = [o for o in observations if o.image in views]
     missing = tuple(o.image for o in observations if o.image not in views)
     if len(used) < 2:
@@ -143,9 +154,25 @@ def triangulate(name: str, observations: Sequence[Observation], views: Mapping[s
             missing_images=missing,
             reason=f"its rays meet at {widest_deg:.2f} deg at most: no depth",
         )
+    xyz = intersect_rays(origins, directions)
+    errors = [
+        math.hypot(*(views[o.image].project(xyz[None, :])[0] - np.array([o.x_px, o.y_px]))) for o in used
+    ]
+    worst = int(np.argmax(errors))
+    if errors[worst] > max_error_px:
+        return Triangulated(
+            name=name,
+            model_xyz=None,
+            used_images=tuple(o.image for o in used),
+            missing_images=missing,
+            reason=(
+                f"its observations disagree: the point they meet at is {errors[worst]:.0f} px from its mark "
+                f"in {used[worst].image} (more than {max_error_px:g} px): re-mark it"
+            ),
+        )
     return Triangulated(
         name=name,
-        model_xyz=intersect_rays(origins, directions),
+        model_xyz=xyz,
         used_images=tuple(o.image for o in used),
         missing_images=missing,
     )

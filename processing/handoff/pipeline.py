@@ -33,6 +33,7 @@ class Engine(StrEnum):
     ODM = "odm"
     METASHAPE = "metashape"
     PIX4D = "pix4d"
+    NODEODM = "nodeodm"
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -47,6 +48,8 @@ class HandoffOptions:
     line_neighbours: int = 2
     max_image_size_px: int = DEFAULT_MAX_IMAGE_SIZE_PX
     overwrite: bool = False
+    node_url: str | None = None
+    token: str = ""
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -123,6 +126,26 @@ def handoff(
                     acc = control_accuracy(plan, quick.largest.views)
                     report["accuracy"] = accuracy_dict(acc, check_distances(plan, acc), plan.notes)
                     report["accuracy"]["table_3_2"] = table_3_2(acc)
+        elif options.engine is Engine.NODEODM:
+            from .nodeodm import parse_node_url, run_on_node
+            from .odm import GCP_TXT, GEO_TXT, write_odm_project
+
+            assert options.node_url is not None
+            address = parse_node_url(options.node_url)
+            say("writing the ODM project")
+            report["odm"] = write_odm_project(prepared.block, prepared.pairs, gcps, stage)
+            files = [stage / "images" / n for n in prepared.block.names]
+            files += [stage / f for f in (GEO_TXT, GCP_TXT) if (stage / f).exists()]
+            run = run_on_node(
+                address,
+                token=options.token,
+                files=files,
+                options=report["odm"]["options"],
+                name=Path(work).name,
+                results_dir=stage / "results",
+                progress=say,
+            )
+            report["nodeodm"] = run.as_dict()
         elif options.engine is Engine.ODM:
             from .odm import write_odm_project
 

@@ -9,8 +9,8 @@ the check's view counts, and the cells the check called covered (two views or mo
 nothing reconstructed.
 
 The verdict (:attr:`QuickLook.reconstructs`): the largest model registers at least
-:data:`MIN_REGISTERED_RATIO` of the frames and no second model of :data:`SPLIT_MODEL_FRAMES`
-frames or more exists (a block in several pieces has no common frame).
+:data:`MIN_REGISTERED_RATIO` of the frames and no second model holds :data:`SPLIT_MODEL_FRAMES`
+frames and :data:`SPLIT_MODEL_RATIO` of them or more (a block in several pieces has no common frame).
 """
 
 from __future__ import annotations
@@ -42,8 +42,9 @@ DEFAULT_MAX_IMAGE_SIZE_PX = 1200
 DEFAULT_MAX_FEATURES = 4000
 #: The block reconstructs when its largest model holds at least this share of the frames...
 MIN_REGISTERED_RATIO = 0.5
-#: ... and no other model holds this many frames.
+#: ... and no other model holds this many frames and this share of them.
 SPLIT_MODEL_FRAMES = 3
+SPLIT_MODEL_RATIO = 0.1
 #: Views the check must predict for a cell to count as covered (stereo needs two).
 COVERED_VIEWS = 2
 
@@ -73,7 +74,8 @@ class Georegistration:
 
 @dataclass(frozen=True, kw_only=True)
 class Comparison:
-    """The check's prediction against the reconstruction on the check's grid (see module doc)."""
+    """The check's prediction against the reconstruction on the check's grid (see module doc);
+    the points are those of every model the pose priors could place, not only the largest."""
 
     cell_m: float
     extent_xy_m: tuple[float, float, float, float]
@@ -114,6 +116,7 @@ class QuickLook:
     comparison: Comparison | None
     max_image_size_px: int
     messages: tuple[str, ...] = field(default_factory=tuple)
+    frames_in_placed_models: tuple[str, ...] = ()
 
     @property
     def largest(self) -> colmap.ColmapModel | None:
@@ -125,7 +128,11 @@ class QuickLook:
             return False
         if len(self.models[0].registered) < MIN_REGISTERED_RATIO * self.n_frames:
             return False
-        return not any(len(m.registered) >= SPLIT_MODEL_FRAMES for m in self.models[1:])
+        return not self._split_models()
+
+    def _split_models(self) -> list[colmap.ColmapModel]:
+        least = max(SPLIT_MODEL_FRAMES, SPLIT_MODEL_RATIO * self.n_frames)
+        return [m for m in self.models[1:] if len(m.registered) >= least]
 
     def verdict(self) -> str:
         """In words a crew can act on."""
@@ -136,7 +143,7 @@ class QuickLook:
                 "ground (crops, water, snow) fly lower or with more overlap"
             )
         big = self.models[0]
-        others = [m for m in self.models[1:] if len(m.registered) >= SPLIT_MODEL_FRAMES]
+        others = self._split_models()
         parts = []
         if len(big.registered) < MIN_REGISTERED_RATIO * self.n_frames:
             parts.append(
@@ -304,6 +311,7 @@ def run_quicklook(
     timings["mapping_s"] = time.perf_counter() - t
     geo: Georegistration | None = None
     comparison: Comparison | None = None
+    placed_frames: set[str] = set()
     messages: list[str] = []
     if models:
         say("georegistration: to the pose priors")
@@ -313,13 +321,29 @@ def run_quicklook(
             s = geo.similarity
             models[0] = colmap.transform_model(models[0], s.scale, s.rotation, s.translation_m)
             colmap.write_model(models[0], folder / "sparse" / "georegistered")
+            sigma = float(np.median(np.hypot(block.sigma_xy_m, block.sigma_z_m)[block.has_position]))
+            if geo.rmse_total_m > 3.0 * sigma:
+                messages.append(
+                    f"the largest model disagrees with the GPS positions by {geo.rmse_total_m:.1f} "
+                    "m RMSE while the "
+                    f"positions are good to about {sigma:.1f} m: its geometry is suspect (frames "
+                    "matched to the "
+                    "wrong place); do not trust its shape"
+                )
+            # What reconstructed: the points of every model the priors can place.
+            placed = [models[0].points_xyz]
+            for k in range(1, len(models)):
+                g = _georegister(prepared, models[k])
+                if g is not None:
+                    placed.append(g.similarity.apply(models[k].points_xyz))
+                    placed_frames.update(models[k].registered)
+            placed_frames.update(models[0].registered)
             say("comparison: the check's view counts against the sparse points")
-            comparison = compare_with_check(prepared, models[0].points_xyz)
+            comparison = compare_with_check(prepared, np.concatenate(placed))
         else:
             messages.append(
-                "the model is not georegistered: fewer than three registered frames have a position "
-                "(or they lie "
-                "on a line); it stays in COLMAP's arbitrary frame"
+                "the model is not georegistered: fewer than three registered frames have a position (or they "
+                "lie on a line); it stays in COLMAP's arbitrary frame"
             )
         timings["georegistration_s"] = time.perf_counter() - t
     registered = models[0].registered if models else ()
@@ -336,4 +360,5 @@ def run_quicklook(
         comparison=comparison,
         max_image_size_px=max_image_size_px,
         messages=tuple(messages),
+        frames_in_placed_models=tuple(sorted(placed_frames)),
     )

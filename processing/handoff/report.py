@@ -43,6 +43,7 @@ def quicklook_dict(q: QuickLook) -> dict[str, Any]:
         "registered": list(q.registered),
         "not_registered": [{"name": n, "verified_matches": m} for n, m in sorted(q.unregistered.items())],
         "models": [len(m.registered) for m in q.models],
+        "frames_in_georegistered_models": len(q.frames_in_placed_models),
         "points3d": big.num_points if big else 0,
         "mean_track_length": big.mean_track_length if big else None,
         "mean_reprojection_error_px": big.mean_reprojection_error_px if big else None,

@@ -24,9 +24,15 @@ _ENGINES = [e.value for e in Engine]
     "--to",
     "engine",
     required=True,
-    type=click.Choice(_ENGINES),
+    metavar="ENGINE",
     help="The engine: colmap (database + pairs, pycolmap), odm (project folder), metashape or pix4d "
-    "(reference CSVs).",
+    "(reference CSVs), or a NodeODM node: nodeodm://HOST:PORT, https://HOST (with --token).",
+)
+@click.option(
+    "--token",
+    default="",
+    envvar="SFAP_NODEODM_TOKEN",
+    help="The NodeODM node's token (or SFAP_NODEODM_TOKEN).",
 )
 @click.option(
     "-o",
@@ -74,6 +80,7 @@ _ENGINES = [e.value for e in Engine]
 def command(
     images: Path,
     engine: str,
+    token: str,
     work: Path,
     run: bool,
     gcp: Path | None,
@@ -102,8 +109,18 @@ def command(
         if not as_json:
             click.echo(f"[{time.perf_counter() - start:6.1f} s] {text}", err=True)
 
+    node_url: str | None = None
+    if "://" in engine:
+        node_url, engine = engine, Engine.NODEODM.value
+    elif engine not in _ENGINES or engine == Engine.NODEODM.value:
+        raise click.BadParameter(
+            f"{engine!r}: choose colmap, odm, metashape, pix4d or a node URL nodeodm://HOST:PORT",
+            param_hint="--to",
+        )
     options = HandoffOptions(
         engine=Engine(engine),
+        node_url=node_url,
+        token=token,
         run=run,
         gcp=gcp,
         gcp_crs=gcp_crs,
@@ -161,6 +178,17 @@ def _present(result: HandoffResult, as_json: bool) -> None:
     for note in project["notes"]:
         click.echo(f"note: {note}", err=True)
     if ql:
+        for message in ql["messages"]:
+            click.echo(f"warning: {message}", err=True)
+        cmp_ = ql.get("check_vs_reconstruction")
+        if cmp_:
+            click.echo(
+                f"check vs reconstruction: {cmp_['covered_but_empty_cells']} of "
+                f"{cmp_['covered_cells']} cells of "
+                f"{cmp_['cell_m']:g} m that the check sees in two frames or more hold no sparse point "
+                f"({cmp_['covered_but_empty_area_m2']:.0f} m2); the check's gaps: "
+                f"{cmp_['check_gap_area_m2']:.0f} m2"
+            )
         click.echo(("" if ql["reconstructs"] else "FAIL: ") + ql["verdict"])
     acc = report.get("accuracy")
     if acc:
