@@ -23,7 +23,7 @@ from ..gcp import GcpSet, read_gcp
 from .control import ControlPlan, check_distances, control_accuracy, validate_control
 from .errors import HandoffInputError
 from .prepare import GroundOptions, Prepared, prepare
-from .quicklook import DEFAULT_MAX_IMAGE_SIZE_PX, QuickLook
+from .quicklook import DEFAULT_MAX_FEATURES, DEFAULT_MAX_IMAGE_SIZE_PX, QuickLook
 
 log = logging.getLogger(__name__)
 
@@ -47,6 +47,7 @@ class HandoffOptions:
     min_overlap_pct: float = 5.0
     line_neighbours: int = 2
     max_image_size_px: int = DEFAULT_MAX_IMAGE_SIZE_PX
+    max_features: int = DEFAULT_MAX_FEATURES
     overwrite: bool = False
     node_url: str | None = None
     token: str = ""
@@ -116,7 +117,11 @@ def handoff(
                 from .quicklook import run_quicklook
 
                 quick = run_quicklook(
-                    prepared, stage, max_image_size_px=options.max_image_size_px, progress=say
+                    prepared,
+                    stage,
+                    max_image_size_px=options.max_image_size_px,
+                    max_features=options.max_features,
+                    progress=say,
                 )
                 report["quicklook"] = quicklook_dict(quick)
                 if not quick.reconstructs:
