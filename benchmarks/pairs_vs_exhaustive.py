@@ -93,13 +93,14 @@ def main() -> None:
             print(f"  {mode}: done", flush=True)
     print(f"\npossible pairs: {n * (n - 1) // 2}")
     print(
-        "| matching | pairs matched | matching time | frames in the largest model | frames in all models (models) "
-        "| 3D points (largest) | mapping time |"
+        "| matching | pairs matched | matching time | frames in the largest model "
+        "| frames in all models (models) | 3D points (largest) | mapping time |"
     )
     print("|---|---|---|---|---|---|---|")
     for mode, pairs, match_s, big, total, count, points, map_s in rows:
         print(
-            f"| {mode} | {pairs} | {match_s:.1f} s | {big} of {n} | {total} ({count}) | {points} | {map_s:.1f} s |"
+            f"| {mode} | {pairs} | {match_s:.1f} s | {big} of {n} | {total} ({count}) "
+            f"| {points} | {map_s:.1f} s |"
         )
 
 
