@@ -239,8 +239,8 @@ def read_block(
         )
     elif missing:
         notes.append(
-            f"none of the {n} images has a position: no pose priors, pairs by capture order and content "
-            "only; the model is placed by ground control (--gcp) or not at all"
+            f"none of the {n} images has a position: no pose priors, every pair is matched; the model is "
+            "placed by ground control (--gcp) or not at all"
         )
 
     sxy = np.array([t.xy_accuracy_m if t.xy_accuracy_m else np.nan for t in tags])

@@ -129,9 +129,9 @@ cameras_reference.csv  camera positions: File > Import > Import Reference (or th
 _PIX4D_README = """Pix4D reference files written by sfap handoff.
 
 cameras_pix4d.csv  image geolocation: Project > Image Properties Editor > Image Geolocation >
-                   From File..., format "Latitude, Longitude, Altitude, Omega, Phi, Kappa" is not
-                   used: choose "Lat, Long" columns: image name, latitude, longitude, altitude
-                   ({alt}), horizontal and vertical accuracy (m). WGS 84.
+                   From File..., file format "Latitude, Longitude": columns image name,
+                   latitude, longitude, altitude (m, {alt}), horizontal and vertical accuracy
+                   (m). Coordinate system WGS 84.
 {gcp}"""
 
 

@@ -175,7 +175,8 @@ def _present(result: HandoffResult, as_json: bool) -> None:
                 )
             )
     echo_table(rows, title=f"{report['engine']} project: {result.work}")
-    for note in project["notes"]:
+    engine_notes = [n for key in ("odm", "metashape", "pix4d") for n in report.get(key, {}).get("notes", [])]
+    for note in [*project["notes"], *engine_notes]:
         click.echo(f"note: {note}", err=True)
     if ql:
         for message in ql["messages"]:
