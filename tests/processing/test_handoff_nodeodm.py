@@ -28,7 +28,9 @@ OUR_OPTIONS = ["camera-lens", "gps-accuracy", "matcher-neighbors"]
 
 def test_node_addresses() -> None:
     assert parse_node_url("nodeodm://10.0.0.5:3000") == NodeAddress(host="10.0.0.5", port=3000, https=False)
-    assert parse_node_url("https://odm.example.org") == NodeAddress(host="odm.example.org", port=443, https=True)
+    assert parse_node_url("https://odm.example.org") == NodeAddress(
+        host="odm.example.org", port=443, https=True
+    )
     for bad in ("nodeodm://host", "ftp://host:21", "https://host:8443"):
         with pytest.raises(HandoffInputError):
             parse_node_url(bad)
@@ -120,12 +122,14 @@ def _handoff(tmp_path: Path, url: str, token: str = "") -> None:
 
 def test_a_wrong_token_is_named(tmp_path: Path, peer: ThreadingHTTPServer) -> None:
     peer.mode = "token"  # type: ignore[attr-defined]
-    with pytest.raises(NodeError, match="refused the token.*--token"):
+    with pytest.raises(NodeError, match=r"refused the token.*--token"):
         _handoff(tmp_path, f"nodeodm://127.0.0.1:{peer.server_port}", token="nope")
     assert not (tmp_path / "work").exists()
 
 
-def test_options_the_node_does_not_take_are_refused_before_upload(tmp_path: Path, peer: ThreadingHTTPServer) -> None:
+def test_options_the_node_does_not_take_are_refused_before_upload(
+    tmp_path: Path, peer: ThreadingHTTPServer
+) -> None:
     peer.mode = "options"  # type: ignore[attr-defined]
     with pytest.raises(NodeError, match="does not take the option"):
         _handoff(tmp_path, f"nodeodm://127.0.0.1:{peer.server_port}")
@@ -134,7 +138,7 @@ def test_options_the_node_does_not_take_are_refused_before_upload(tmp_path: Path
 
 
 def test_a_refused_task_is_named_and_cleaned_up(tmp_path: Path, peer: ThreadingHTTPServer) -> None:
-    with pytest.raises(NodeError, match="refused the task.*matcher-neighbors"):
+    with pytest.raises(NodeError, match=r"refused the task.*matcher-neighbors"):
         _handoff(tmp_path, f"nodeodm://127.0.0.1:{peer.server_port}")
     requests = peer.requests  # type: ignore[attr-defined]
     assert ("POST", "/task/new/init") in requests
@@ -144,7 +148,9 @@ def test_a_refused_task_is_named_and_cleaned_up(tmp_path: Path, peer: ThreadingH
 
 
 @pytest.mark.slow
-@pytest.mark.skipif(not os.environ.get("SFAP_NODEODM_URL"), reason="set SFAP_NODEODM_URL to a NodeODM (--test mode)")
+@pytest.mark.skipif(
+    not os.environ.get("SFAP_NODEODM_URL"), reason="set SFAP_NODEODM_URL to a NodeODM (--test mode)"
+)
 def test_a_real_node_runs_the_task_end_to_end(tmp_path: Path) -> None:
     url = os.environ["SFAP_NODEODM_URL"]
     try:
