@@ -118,6 +118,7 @@ class Triangulated:
     used_images: tuple[str, ...]
     missing_images: tuple[str, ...]
     reason: str = ""
+    marks_rmse_px: float = 0.0
 
 
 def triangulate(
@@ -175,6 +176,7 @@ def triangulate(
         model_xyz=xyz,
         used_images=tuple(o.image for o in used),
         missing_images=missing,
+        marks_rmse_px=float(np.sqrt(np.mean(np.square(errors)))),
     )
 
 
@@ -187,6 +189,7 @@ class PointResidual:
     dz_m: float
     image_rmse_px: float
     n_images: int
+    marks_rmse_px: float = 0.0
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -202,6 +205,7 @@ class RmseRow:
     rmse_total_m: float
     rmse_image_px: float
     range_m: float
+    rmse_marks_px: float = 0.0
 
     @property
     def ratio(self) -> float:
@@ -218,6 +222,7 @@ class RmseRow:
             "rmse_horizontal_m": self.rmse_horizontal_m,
             "rmse_total_m": self.rmse_total_m,
             "rmse_image_px": self.rmse_image_px,
+            "rmse_marks_px": self.rmse_marks_px,
             "range_m": self.range_m,
             "rmse_to_range": f"1:{self.ratio:.0f}" if math.isfinite(self.ratio) else "1:inf",
         }
@@ -240,6 +245,9 @@ def rmse_row(role: str, residuals: Sequence[PointResidual], range_m: float) -> R
         rmse_horizontal_m=float(math.hypot(rx, ry)),
         rmse_total_m=float(math.sqrt(rx * rx + ry * ry + rz * rz)),
         rmse_image_px=img_rmse,
+        rmse_marks_px=float(
+            np.sqrt(np.sum(np.array([r.marks_rmse_px for r in residuals]) ** 2 * n_img) / max(n_img.sum(), 1))
+        ),
         range_m=range_m,
     )
 
@@ -334,6 +342,7 @@ def assess_accuracy(
                     dy_m=float(d[1]),
                     dz_m=float(d[2]),
                     image_rmse_px=float(np.sqrt(np.mean(np.square(errs)))),
+                    marks_rmse_px=t.marks_rmse_px,
                     n_images=len(errs),
                 )
             )
@@ -356,10 +365,13 @@ def assess_accuracy(
 
 
 def table_3_2(result: AccuracyResult) -> str:
-    """The RMSE rows laid out like the textbook's Table 3-2, beside its figures (plain text)."""
+    """The RMSE rows laid out like the textbook's Table 3-2, beside its figures (plain text).
+
+    "image px": each mark against the surveyed point carried into the model and projected;
+    "marks px": each mark against the point its own rays meet at (how well the marks agree)."""
     head = (
         f"{'points':<8} {'n':>3} {'RMSE X m':>9} {'RMSE Y m':>9} {'RMSE Z m':>9} {'horiz. m':>9} "
-        f"{'total m':>9} {'image px':>9} {'range m':>8} {'RMSE:range':>11}"
+        f"{'total m':>9} {'image px':>9} {'marks px':>9} {'range m':>8} {'RMSE:range':>11}"
     )
     lines = [head]
     for row in (result.control, result.check):
@@ -369,7 +381,7 @@ def table_3_2(result: AccuracyResult) -> str:
         lines.append(
             f"{row.role:<8} {row.n_points:>3} {row.rmse_x_m:>9.3f} {row.rmse_y_m:>9.3f} {row.rmse_z_m:>9.3f} "
             f"{row.rmse_horizontal_m:>9.3f} {row.rmse_total_m:>9.3f} {row.rmse_image_px:>9.2f} "
-            f"{row.range_m:>8.1f} {ratio:>11}"
+            f"{row.rmse_marks_px:>9.2f} {row.range_m:>8.1f} {ratio:>11}"
         )
     lines.append(
         f"textbook (seed 3-3.7, Table 3-2): check points 1:{TEXTBOOK_RATIO_RANGE[0]:.0f} to "

@@ -122,6 +122,7 @@ def accuracy_html(acc: dict[str, Any]) -> str:
                     f"{r['rmse_horizontal_m']:.3f}",
                     f"{r['rmse_total_m']:.3f}",
                     f"{r['rmse_image_px']:.2f}",
+                    f"{r['rmse_marks_px']:.2f}",
                     f"{r['range_m']:.1f}",
                     r["rmse_to_range"],
                 ]
@@ -130,12 +131,7 @@ def accuracy_html(acc: dict[str, Any]) -> str:
         [
             "textbook (Table 3-2)",
             9,
-            "",
-            "",
-            "",
-            "",
-            "",
-            "",
+            *[""] * 7,
             "75.6",
             f"1:{TEXTBOOK_RATIO_RANGE[0]:.0f} to 1:{TEXTBOOK_RATIO_RANGE[1]:.0f}",
         ]
@@ -143,14 +139,7 @@ def accuracy_html(acc: dict[str, Any]) -> str:
     rows.append(
         [
             "Smith and Vericat (2015), mean of 50",
-            "",
-            "",
-            "",
-            "",
-            "",
-            "",
-            "",
-            "",
+            *[""] * 9,
             f"1:{SMITH_VERICAT_RATIO:.0f}",
         ]
     )
@@ -164,6 +153,7 @@ def accuracy_html(acc: dict[str, Any]) -> str:
             "horizontal m",
             "total m",
             "image px",
+            "marks px",
             "range m",
             "RMSE:range",
         ],

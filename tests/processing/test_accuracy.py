@@ -89,6 +89,7 @@ def test_noise_free_scene_is_placed_exactly() -> None:
     assert result.check is not None
     assert result.check.rmse_total_m < 1e-6
     assert result.check.rmse_image_px < 1e-6
+    assert result.check.rmse_marks_px < 1e-6
     assert result.control.range_m == pytest.approx(HEIGHT_M - np.mean([v[2] for v in sc["ground"].values()]))
 
 
@@ -98,6 +99,7 @@ def test_check_point_rmse_follows_the_injected_noise(sigma_px: float) -> None:
     gsd_m = HEIGHT_M / FOCAL_PX
     rows = []
     image_px = []
+    marks_px = []
     for seed in range(12):
         sc = _scene(sigma_px, seed=100 + seed)
         names = sc["names"]
@@ -111,6 +113,7 @@ def test_check_point_rmse_follows_the_injected_noise(sigma_px: float) -> None:
         assert r.check is not None
         rows.append(r.check)
         image_px.append(r.check.rmse_image_px)
+        marks_px.append(r.check.rmse_marks_px)
     horizontal = math.sqrt(np.mean([row.rmse_horizontal_m**2 for row in rows]))
     vertical = math.sqrt(np.mean([row.rmse_z_m**2 for row in rows]))
     # Per axis a ray misses by sigma x GSD; several rays average it down, the similarity fit on
@@ -121,6 +124,8 @@ def test_check_point_rmse_follows_the_injected_noise(sigma_px: float) -> None:
     assert 0.1 * per_ray_m < vertical < 2.0 * (HEIGHT_M / 25.0) * per_ray_m
     # Image residuals: the 2D noise, sigma x sqrt(2), plus a little from the fit.
     assert 0.8 * sigma_px * math.sqrt(2) < np.mean(image_px) < 1.5 * sigma_px * math.sqrt(2)
+    # The marks against their own intersection: the noise less the three coordinates fitted to it.
+    assert 0.3 * sigma_px * math.sqrt(2) < np.mean(marks_px) < np.mean(image_px)
 
 
 def test_fewer_than_three_triangulable_control_points_is_refused() -> None:
