@@ -48,7 +48,9 @@ _ENGINES = [e.value for e in Engine]
 @click.option(
     "--gcp",
     type=click.Path(exists=True, dir_okay=False, path_type=Path),
-    help="Ground control: OpenDroneMap gcp_list.txt (first line the CRS) or a CSV (see the docs).",
+    help="Ground control: OpenDroneMap gcp_list.txt (first line the CRS) or a .csv with columns name, "
+    "lon_deg, lat_deg (or easting_m, northing_m with --gcp-crs), alt_m, image, x_px, y_px (one row per "
+    "observation; pixels from the top-left corner of the full-size image).",
 )
 @click.option("--gcp-crs", default=None, help="CRS of a CSV's easting/northing columns, e.g. EPSG:32611.")
 @click.option(
