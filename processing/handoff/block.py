@@ -21,7 +21,7 @@ import logging
 import os
 import warnings
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -279,8 +279,3 @@ def read_block(
         frame_rows=tuple(rows_list),
         notes=tuple(notes),
     )
-
-
-def rebase_frames(block: Block, frames: tuple[Frames, ...]) -> Block:
-    """The block with its Frames replaced (e.g. altitudes rebased by the ground choice)."""
-    return replace(block, frames=frames)

@@ -10,7 +10,6 @@ importer also writes WGS84 priors from the EXIF; those are replaced by ours.
 from __future__ import annotations
 
 import logging
-import math
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -95,42 +94,6 @@ def write_database(
                     coordinate_system=pycolmap.PosePriorCoordinateSystem.CARTESIAN,
                 )
             )
-
-
-@dataclass(frozen=True, kw_only=True)
-class DatabaseSummary:
-    cameras: int
-    images: int
-    pose_priors: int
-    image_names: tuple[str, ...]
-    prior_positions: dict[str, tuple[float, float, float]]
-    prior_sigmas: dict[str, tuple[float, float]]
-    focal_px: tuple[float, ...]
-
-
-def read_database(database: Path) -> DatabaseSummary:
-    """What a database holds (for tests and for `--run` on a project written earlier)."""
-    import pycolmap
-
-    with pycolmap.Database.open(str(database)) as db:
-        images = db.read_all_images()
-        name_of = {im.image_id: im.name for im in images}
-        positions: dict[str, tuple[float, float, float]] = {}
-        sigmas: dict[str, tuple[float, float]] = {}
-        for prior in db.read_all_pose_priors():
-            name = name_of[prior.corr_data_id.id]
-            positions[name] = tuple(float(v) for v in prior.position)  # type: ignore[assignment]
-            cov = np.asarray(prior.position_covariance)
-            sigmas[name] = (math.sqrt(cov[0, 0]), math.sqrt(cov[2, 2]))
-        return DatabaseSummary(
-            cameras=int(db.num_cameras()),
-            images=int(db.num_images()),
-            pose_priors=int(db.num_pose_priors()),
-            image_names=tuple(im.name for im in images),
-            prior_positions=positions,
-            prior_sigmas=sigmas,
-            focal_px=tuple(float(c.params[0]) for c in db.read_all_cameras()),
-        )
 
 
 def extract_features(

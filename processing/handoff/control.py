@@ -9,7 +9,6 @@ points (:func:`processing.inputs.local_frame_at`: metres east and north, z the s
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 
@@ -120,7 +119,3 @@ def check_distances(plan: ControlPlan, result: AccuracyResult) -> list[dict[str,
                 {"a": a, "b": b, "surveyed_m": surveyed, "model_m": model, "difference_m": model - surveyed}
             )
     return rows
-
-
-def rms(values: list[float]) -> float:
-    return math.sqrt(sum(v * v for v in values) / len(values)) if values else 0.0
