@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import threading
 import time
 import uuid
 from collections.abc import Callable, Sequence
@@ -112,6 +113,27 @@ def _explain(error: Exception, address: NodeAddress, stage: str) -> NodeError:
     return NodeError(f"{stage} on {address.label} failed: {text}")
 
 
+def _in_daemon_thread(work: Callable[[], Any]) -> Any:
+    """Run ``work`` in a daemon thread and wait for it here. pyodm uploads and downloads with
+    threads of its own that are not daemons; started from a daemon thread they are daemons too,
+    so Ctrl-C (which arrives here, in the main thread) cannot leave the process hanging on them."""
+    outcome: dict[str, Any] = {}
+
+    def run() -> None:
+        try:
+            outcome["value"] = work()
+        except BaseException as error:
+            outcome["error"] = error
+
+    thread = threading.Thread(target=run, daemon=True, name="nodeodm-transfer")
+    thread.start()
+    while thread.is_alive():
+        thread.join(0.2)
+    if "error" in outcome:
+        raise outcome["error"]
+    return outcome.get("value")
+
+
 def check_options(available: Sequence[str], options: Sequence[dict[str, Any]], address: NodeAddress) -> None:
     unknown = [o["name"] for o in options if o["name"] not in available]
     if unknown:
@@ -173,15 +195,17 @@ def run_on_node(
 
     try:
         created = True  # from here a partial task may exist on the node
-        node.create_task(
-            [str(f) for f in files],
-            {o["name"]: o["value"] for o in options},
-            name=name,
-            progress_callback=upload_progress,
-            max_retries=UPLOAD_RETRIES,
-            retry_timeout=1,
-            parallel_uploads=4,
-            task_uuid=task_uuid,
+        _in_daemon_thread(
+            lambda: node.create_task(
+                [str(f) for f in files],
+                {o["name"]: o["value"] for o in options},
+                name=name,
+                progress_callback=upload_progress,
+                max_retries=UPLOAD_RETRIES,
+                retry_timeout=1,
+                parallel_uploads=4,
+                task_uuid=task_uuid,
+            )
         )
         phase[0] = "processing"
         state = {"progress": -1.0}
@@ -209,7 +233,7 @@ def run_on_node(
         phase[0] = "downloading the results"
         say("download: results")
         results_dir.mkdir(parents=True, exist_ok=True)
-        task.download_assets(str(results_dir))
+        _in_daemon_thread(lambda: task.download_assets(str(results_dir)))
         results = tuple(
             sorted(str(p.relative_to(results_dir)) for p in results_dir.rglob("*") if p.is_file())
         )
