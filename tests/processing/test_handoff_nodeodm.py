@@ -7,8 +7,12 @@ from __future__ import annotations
 
 import json
 import os
+import signal
 import socket
+import subprocess
+import sys
 import threading
+import time
 from collections.abc import Iterator
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
@@ -90,15 +94,25 @@ class _Peer(BaseHTTPRequestHandler):
         self.rfile.read(length)
         path = urlparse(self.path).path
         self.server.requests.append(("POST", path))  # type: ignore[attr-defined]
-        if path == "/task/new/init":
+        if path == "/task/new/init" and self.server.mode == "slow":  # type: ignore[attr-defined]
+            self._json({"uuid": self.headers.get("set-uuid")})
+        elif path.startswith("/task/new/upload") and self.server.mode == "slow":  # type: ignore[attr-defined]
+            time.sleep(5.0)  # a slow link: Ctrl-C arrives during the upload
+            self._json({"success": True})
+        elif path == "/task/new/init":
             self._json({"error": "Invalid options: matcher-neighbors must be between 0 and 50"})
         else:
             self._json({"success": True})
 
 
+class _QuietServer(ThreadingHTTPServer):
+    def handle_error(self, request: Any, client_address: Any) -> None:
+        pass  # a client that went away (Ctrl-C) mid-answer
+
+
 @pytest.fixture
 def peer() -> Iterator[ThreadingHTTPServer]:
-    server = ThreadingHTTPServer(("127.0.0.1", 0), _Peer)
+    server = _QuietServer(("127.0.0.1", 0), _Peer)
     server.mode = "init"  # type: ignore[attr-defined]
     server.requests = []  # type: ignore[attr-defined]
     thread = threading.Thread(target=server.serve_forever, daemon=True)
@@ -145,6 +159,49 @@ def test_a_refused_task_is_named_and_cleaned_up(tmp_path: Path, peer: ThreadingH
     assert ("POST", "/task/remove") in requests  # nothing left on the node
     assert not (tmp_path / "work").exists()
     assert not [p for p in tmp_path.iterdir() if ".staging" in p.name]
+
+
+_CTRL_C_CHILD = """
+import sys
+from pathlib import Path
+from processing.handoff.nodeodm import NodeAddress, run_on_node
+files = sorted(Path(sys.argv[2]).glob("*.jpg"))
+print("started", flush=True)
+run_on_node(NodeAddress(host="127.0.0.1", port=int(sys.argv[1]), https=False), token="", files=files,
+            options=[], name="t", results_dir=Path(sys.argv[3]))
+"""
+
+
+def test_ctrl_c_during_the_upload_cancels_removes_and_exits(
+    tmp_path: Path, peer: ThreadingHTTPServer
+) -> None:
+    peer.mode = "slow"  # type: ignore[attr-defined]
+    grid(tmp_path / "img", lines=1, per_line=4, dx_m=110.0, dy_m=45.0)
+    child = subprocess.Popen(
+        [
+            sys.executable,
+            "-c",
+            _CTRL_C_CHILD,
+            str(peer.server_port),
+            str(tmp_path / "img"),
+            str(tmp_path / "r"),
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    deadline = time.monotonic() + 60
+    while not any(p.startswith("/task/new/upload") for _, p in peer.requests):  # type: ignore[attr-defined]
+        assert time.monotonic() < deadline and child.poll() is None, child.communicate()
+        time.sleep(0.05)
+    child.send_signal(signal.SIGINT)
+    start = time.monotonic()
+    _, err = child.communicate(timeout=30)
+    assert time.monotonic() - start < 10.0  # no thread left to keep the process alive
+    assert "KeyboardInterrupt" in err
+    posts = [p for method, p in peer.requests if method == "POST"]  # type: ignore[attr-defined]
+    assert "/task/cancel" in posts and "/task/remove" in posts
+    assert not (tmp_path / "r").exists()
 
 
 @pytest.mark.slow
