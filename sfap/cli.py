@@ -27,6 +27,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "monitor": ("monitor", "Record camera triggers and telemetry during a flight."),
     "geotag": ("geotag", "Geotag frames from the flight's own telemetry log."),
     "check": ("check", "Check coverage, overlap, B/H, GSD and blur of images or a plan."),
+    "handoff": ("handoff", "Hand the frames to COLMAP, ODM, NodeODM, Metashape or Pix4D; run and measure."),
 }
 
 

@@ -1,0 +1,167 @@
+"""``handoff``: one function from an image folder to a finished project folder.
+
+The project is built in a staging folder beside WORK and moved into place only when complete
+(:func:`planner.outputs.staged_output_dir`): on any error, or Ctrl-C, nothing is left.
+A block that was run but did not reconstruct is a complete result (its report says why) with
+exit code 1.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from enum import StrEnum
+from pathlib import Path
+from typing import Any
+
+from planner.outputs import check_output_dir, staged_output_dir
+
+from ..accuracy import table_3_2
+from ..gcp import GcpSet, read_gcp
+from .control import ControlPlan, check_distances, control_accuracy, validate_control
+from .errors import HandoffInputError
+from .prepare import GroundOptions, Prepared, prepare
+from .quicklook import DEFAULT_MAX_FEATURES, DEFAULT_MAX_IMAGE_SIZE_PX, QuickLook
+
+log = logging.getLogger(__name__)
+
+
+class Engine(StrEnum):
+    COLMAP = "colmap"
+    ODM = "odm"
+    METASHAPE = "metashape"
+    PIX4D = "pix4d"
+    NODEODM = "nodeodm"
+
+
+@dataclass(frozen=True, kw_only=True)
+class HandoffOptions:
+    engine: Engine
+    run: bool = False
+    gcp: Path | None = None
+    gcp_crs: str | None = None
+    check_points: str | None = None
+    ground: GroundOptions = field(default_factory=GroundOptions)
+    min_overlap_pct: float = 5.0
+    line_neighbours: int = 2
+    max_image_size_px: int = DEFAULT_MAX_IMAGE_SIZE_PX
+    max_features: int = DEFAULT_MAX_FEATURES
+    overwrite: bool = False
+    node_url: str | None = None
+    token: str = ""
+
+
+@dataclass(frozen=True, kw_only=True)
+class HandoffResult:
+    work: Path
+    report: dict[str, Any]
+    quicklook: QuickLook | None = None
+    exit_code: int = 0
+    messages: tuple[str, ...] = field(default_factory=tuple)
+
+
+def _load_control(options: HandoffOptions, prepared: Prepared) -> tuple[GcpSet | None, ControlPlan | None]:
+    if options.gcp is None:
+        if options.check_points:
+            raise HandoffInputError("--check-points needs ground control: give --gcp FILE")
+        return None, None
+    gcps = read_gcp(options.gcp, crs=options.gcp_crs)
+    return gcps, validate_control(gcps, prepared.block, options.check_points)
+
+
+def handoff(
+    images: str | os.PathLike[str],
+    work: str | os.PathLike[str],
+    options: HandoffOptions,
+    *,
+    progress: Callable[[str], None] | None = None,
+) -> HandoffResult:
+    """Write the ``options.engine`` project for ``images`` into ``work`` (and run it for COLMAP
+    with ``options.run``)."""
+    from .report import accuracy_dict, quicklook_dict, report_html, write_json
+
+    if options.run and options.engine is not Engine.COLMAP:
+        raise HandoffInputError(f"--run runs COLMAP only; drop --run for --to {options.engine.value}")
+    if not (200 <= options.max_image_size_px <= 20000):
+        raise HandoffInputError(f"--max-image-size-px {options.max_image_size_px} is outside 200..20000")
+    check_output_dir(work, overwrite=options.overwrite)
+    say = progress or (lambda text: None)
+    say("reading the frames")
+    prepared = prepare(
+        images,
+        ground=options.ground,
+        min_overlap_pct=options.min_overlap_pct,
+        line_neighbours=options.line_neighbours,
+    )
+    gcps, plan = _load_control(options, prepared)
+    from .colmap_project import project_info
+
+    report: dict[str, Any] = {"engine": options.engine.value, "project": project_info(prepared)}
+    if plan is not None:
+        report["control"] = {
+            "control": list(plan.control),
+            "check": list(plan.check),
+            "notes": list(plan.notes),
+        }
+    quick: QuickLook | None = None
+    exit_code = 0
+    with staged_output_dir(work, overwrite=options.overwrite) as stage:
+        if options.engine is Engine.COLMAP:
+            from .colmap_project import write_colmap_project
+
+            say("writing the COLMAP database and pairs")
+            write_colmap_project(prepared, stage)
+            if options.run:
+                from .quicklook import run_quicklook
+
+                quick = run_quicklook(
+                    prepared,
+                    stage,
+                    max_image_size_px=options.max_image_size_px,
+                    max_features=options.max_features,
+                    progress=say,
+                )
+                report["quicklook"] = quicklook_dict(quick)
+                if not quick.reconstructs:
+                    exit_code = 1
+                if plan is not None and quick.largest is not None:
+                    say("accuracy: control and check points")
+                    acc = control_accuracy(plan, quick.largest.views)
+                    report["accuracy"] = accuracy_dict(acc, check_distances(plan, acc), plan.notes)
+                    report["accuracy"]["table_3_2"] = table_3_2(acc)
+        elif options.engine is Engine.NODEODM:
+            from .nodeodm import parse_node_url, run_on_node
+            from .odm import GCP_TXT, GEO_TXT, write_odm_project
+
+            assert options.node_url is not None
+            address = parse_node_url(options.node_url)
+            say("writing the ODM project")
+            report["odm"] = write_odm_project(prepared.block, prepared.pairs, gcps, stage)
+            files = [stage / "images" / n for n in prepared.block.names]
+            files += [stage / f for f in (GEO_TXT, GCP_TXT) if (stage / f).exists()]
+            run = run_on_node(
+                address,
+                token=options.token,
+                files=files,
+                options=report["odm"]["options"],
+                name=Path(work).name,
+                results_dir=stage / "results",
+                progress=say,
+            )
+            report["nodeodm"] = run.as_dict()
+        elif options.engine is Engine.ODM:
+            from .odm import write_odm_project
+
+            say("writing the ODM project")
+            report["odm"] = write_odm_project(prepared.block, prepared.pairs, gcps, stage)
+        else:
+            from .odm import write_reference
+
+            say(f"writing the {options.engine.value} reference files")
+            report[options.engine.value] = write_reference(prepared.block, gcps, stage, options.engine.value)
+        (stage / "report.json").write_text(write_json(report), encoding="utf-8")
+        if options.engine is Engine.COLMAP:
+            (stage / "report.html").write_text(report_html(report, quick), encoding="utf-8")
+    return HandoffResult(work=Path(work), report=report, quicklook=quick, exit_code=exit_code)

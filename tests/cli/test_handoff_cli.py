@@ -1,0 +1,194 @@
+"""`sfap handoff` through the CLI: every engine's folder, and bad input with exit codes."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import exifread
+import pytest
+from click.testing import CliRunner
+from handoff_grid import HEIGHT_M, grid
+from pyproj import CRS
+
+from sfap.cli import cli
+
+
+def _gcp_csv(path: Path, frames: list[tuple[str, float, float, int]], images: Path) -> Path:
+    # Three points, each in two frames, at pixel positions inside the 320 x 240 frames.
+    rows = ["name,lon_deg,lat_deg,alt_m,image,x_px,y_px"]
+    for k in range(3):
+        for name, *_ in frames[k : k + 2]:
+            rows.append(f"g{k},7.00{k}1,45.00{k}1,0.0,{name},{100 + 10 * k},{80 + 5 * k}")
+    path.write_text("\n".join(rows) + "\n")
+    return path
+
+
+@pytest.fixture
+def block(tmp_path: Path) -> tuple[Path, list[tuple[str, float, float, int]]]:
+    frames = grid(tmp_path / "img", lines=3, per_line=5, dx_m=110.0, dy_m=45.0)
+    return tmp_path / "img", frames
+
+
+def _run(*args: str) -> tuple[int, str, str]:
+    result = CliRunner().invoke(cli, list(args))
+    return result.exit_code, result.stdout, result.stderr
+
+
+def test_colmap_project_and_json(tmp_path: Path, block) -> None:  # type: ignore[no-untyped-def]
+    images, frames = block
+    code, out, err = _run(
+        "handoff",
+        str(images),
+        "--to",
+        "colmap",
+        "--ground-elevation-m",
+        "0",
+        "-o",
+        str(tmp_path / "w"),
+        "--json",
+    )
+    assert code == 0, err
+    data = json.loads(out)
+    assert data["project"]["images"] == len(frames)
+    assert {p.name for p in (tmp_path / "w").iterdir()} >= {
+        "database.db",
+        "pairs.txt",
+        "project.json",
+        "images",
+        "report.json",
+    }
+    assert CRS.from_proj4(data["project"]["local_frame"]["proj"]).is_projected
+    # Again without --overwrite: refused, exit 2, the project untouched.
+    before = (tmp_path / "w" / "pairs.txt").read_bytes()
+    code, out, err = _run(
+        "handoff", str(images), "--to", "colmap", "--ground-elevation-m", "0", "-o", str(tmp_path / "w")
+    )
+    assert code == 2 and "--overwrite" in err
+    assert (tmp_path / "w" / "pairs.txt").read_bytes() == before
+
+
+def test_odm_project_has_what_odm_reads(tmp_path: Path, block) -> None:  # type: ignore[no-untyped-def]
+    images, frames = block
+    gcp = _gcp_csv(tmp_path / "gcp.csv", frames, images)
+    code, _, err = _run(
+        "handoff",
+        str(images),
+        "--to",
+        "odm",
+        "--ground-elevation-m",
+        "0",
+        "--gcp",
+        str(gcp),
+        "-o",
+        str(tmp_path / "odm"),
+    )
+    assert code == 0, err
+    work = tmp_path / "odm"
+    assert sorted(p.name for p in (work / "images").iterdir()) == sorted(f[0] for f in frames)
+    assert (work / "images" / frames[0][0]).read_bytes() == (images / frames[0][0]).read_bytes()
+    geo = (work / "geo.txt").read_text().splitlines()
+    assert CRS.from_user_input(geo[0]).to_epsg() == 4326
+    by_name = {line.split()[0]: [float(v) for v in line.split()[1:]] for line in geo[1:]}
+    assert len(by_name) == len(frames)
+    for name, *_ in frames:
+        with open(images / name, "rb") as handle:
+            tags = exifread.process_file(handle, details=False)
+        d, m, s = (float(v.num) / float(v.den) for v in tags["GPS GPSLatitude"].values)
+        assert by_name[name][1] == pytest.approx(d + m / 60 + s / 3600, abs=1e-7)
+        assert by_name[name][2] == pytest.approx(HEIGHT_M, abs=1e-3)
+        assert by_name[name][6:8] == [1.5, 3.0]
+    gcp_lines = (work / "gcp_list.txt").read_text().splitlines()
+    assert CRS.from_user_input(gcp_lines[0]).to_epsg() == 4326
+    assert len(gcp_lines) == 1 + 6
+    options = {o["name"]: o["value"] for o in json.loads((work / "options.json").read_text())}
+    assert options["gps-accuracy"] == 1.5
+    assert options["camera-lens"] == "brown"
+    assert 4 <= options["matcher-neighbors"] <= len(frames) - 1
+    args = (work / "odm_args.txt").read_text()
+    assert "--gps-accuracy 1.5" in args and "--gcp gcp_list.txt" in args
+
+
+@pytest.mark.parametrize("engine", ["metashape", "pix4d"])
+def test_reference_files_with_a_readme(tmp_path: Path, block, engine: str) -> None:  # type: ignore[no-untyped-def]
+    images, frames = block
+    gcp = _gcp_csv(tmp_path / "gcp.csv", frames, images)
+    code, _, err = _run(
+        "handoff",
+        str(images),
+        "--to",
+        engine,
+        "--ground-elevation-m",
+        "0",
+        "--gcp",
+        str(gcp),
+        "-o",
+        str(tmp_path / "r"),
+    )
+    assert code == 0, err
+    readme = (tmp_path / "r" / "README.txt").read_text()
+    listed = [p.name for p in (tmp_path / "r").iterdir() if p.suffix == ".csv"]
+    assert len(listed) == 3
+    for name in listed:
+        assert name in readme  # every file says which menu imports it
+    cams = next(p for p in listed if p.startswith("cameras"))
+    rows = (tmp_path / "r" / cams).read_text().splitlines()
+    assert len(rows) == len(frames)
+    assert all(math.isfinite(float(v)) for v in rows[0].split(",")[1:])
+
+
+def test_bad_input_exits_2_with_the_fix(tmp_path: Path, block) -> None:  # type: ignore[no-untyped-def]
+    images, frames = block
+    code, _, err = _run("handoff", str(images), "--to", "colmap", "-o", str(tmp_path / "a"))
+    assert code == 2 and "--ground-elevation-m" in err
+    code, _, err = _run(
+        "handoff", str(images), "--to", "odm", "--run", "--ground-elevation-m", "0", "-o", str(tmp_path / "b")
+    )
+    assert code == 2 and "--run" in err
+    bad = tmp_path / "bad.txt"
+    bad.write_text("NOT A CRS\n1 2 0 10 10 F000.jpg g1\n")
+    code, _, err = _run(
+        "handoff",
+        str(images),
+        "--to",
+        "odm",
+        "--ground-elevation-m",
+        "0",
+        "--gcp",
+        str(bad),
+        "-o",
+        str(tmp_path / "c"),
+    )
+    assert code == 2 and "not a coordinate reference system" in err
+    code, _, err = _run(
+        "handoff",
+        str(images),
+        "--to",
+        "colmap",
+        "--ground-elevation-m",
+        "0",
+        "--check-points",
+        "2",
+        "-o",
+        str(tmp_path / "d"),
+    )
+    assert code == 2 and "--gcp" in err
+    gcp = _gcp_csv(tmp_path / "gcp.csv", frames, images)
+    code, _, err = _run(
+        "handoff",
+        str(images),
+        "--to",
+        "colmap",
+        "--ground-elevation-m",
+        "0",
+        "--gcp",
+        str(gcp),
+        "--check-points",
+        "1",
+        "-o",
+        str(tmp_path / "e"),
+    )
+    assert code == 2 and "usable control point" in err
+    assert not any((tmp_path / n).exists() for n in "abcde")
+    assert "Traceback" not in err
