@@ -554,7 +554,7 @@ def test_a_frame_cut_short_is_tagged_and_named_in_the_report(
 ) -> None:
     """A frame whose end marker is missing (cut short on the card) is still tagged, its image
     data unchanged, and the report's warnings name it; the other frames are unaffected."""
-    card, truth = survey_images
+    card, _ = survey_images
     cut = card / "DSC00007.JPG"
     whole = cut.read_bytes()
     assert whole.endswith(b"\xff\xd9")
@@ -569,6 +569,7 @@ def test_a_frame_cut_short_is_tagged_and_named_in_the_report(
     assert written[start:] == whole[whole.index(b"\xff\xda") : -2]
     lat, lon, _ = _exifread_position(tmp_path / "out" / "DSC00007.JPG")
     assert lat == pytest.approx(by_name["DSC00007.JPG"].lat_deg, abs=1e-7)
+    assert lon == pytest.approx(by_name["DSC00007.JPG"].lon_deg, abs=1e-7)
     report = json.loads((tmp_path / "out" / "geotag_report.json").read_text())
     assert any("DSC00007.JPG" in w for w in report["summary"]["warnings"])
 
