@@ -29,12 +29,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from planner.camera import Camera
+from planner.errors import CameraError
 from planner.geo import LocalFrame
 
 from ..frames import AltitudeReference, Frames
 from ..inputs import frames_from_tags, image_paths, local_frame_at
 from .errors import HandoffInputError
-from .intrinsics import Intrinsics, intrinsics_for
+from .intrinsics import Intrinsics, given_intrinsics, intrinsics_for
 
 if TYPE_CHECKING:
     from acquisition.exif import ImageTags
@@ -103,14 +104,27 @@ def proj_string(frame: LocalFrame) -> str:
         return str(frame.crs.to_proj4())
 
 
-def _camera(intr: Intrinsics) -> Camera:
-    """A planner Camera for the footprints of images of this camera."""
+def _camera(intr: Intrinsics, given: Camera | None = None) -> Camera:
+    """A planner Camera for the footprints of images of this camera (only its field of view
+    matters there)."""
+    if given is not None:
+        return given
     make, model, _, w, h = intr.key
     if intr.focal_length_mm and intr.pixel_pitch_mm:
         f_mm, pitch = intr.focal_length_mm, intr.pixel_pitch_mm
     else:  # the footprint only needs the field of view: a nominal 1 um pixel
         pitch = 0.001
         f_mm = intr.focal_px * pitch
+    try:
+        return _fov_camera(intr, make, model, w, h, f_mm, pitch)
+    except CameraError as error:
+        raise HandoffInputError(
+            f"{intr.label}: no camera the footprints can use ({error}); give the camera: --camera ID "
+            "(`sfap cameras` lists them) or --camera FILE.toml"
+        ) from None
+
+
+def _fov_camera(intr: Intrinsics, make: str, model: str, w: int, h: int, f_mm: float, pitch: float) -> Camera:
     return Camera(
         id=f"{make}-{model}".lower().replace(" ", "-") or "camera",
         name=intr.label,
@@ -128,6 +142,7 @@ def _camera(intr: Intrinsics) -> Camera:
 def read_block(
     image_dir: str | os.PathLike[str],
     *,
+    camera: Camera | None = None,
     progress: Callable[[int], None] | None = None,
 ) -> Block:
     """Read every JPEG in ``image_dir`` into a :class:`Block` (module docstring)."""
@@ -158,14 +173,24 @@ def read_block(
     for c, (_key, members) in enumerate(groups.items()):
         t0 = tags[members[0]]
         assert t0.width_px is not None and t0.height_px is not None
-        intr = intrinsics_for(
-            sample_path=t0.path,
-            make=t0.make,
-            model=t0.model,
-            focal_length_mm=t0.focal_length_mm,
-            width_px=t0.width_px,
-            height_px=t0.height_px,
-        )
+        if camera is not None:
+            intr = given_intrinsics(
+                camera,
+                make=t0.make,
+                model=t0.model,
+                focal_length_mm=t0.focal_length_mm,
+                width_px=t0.width_px,
+                height_px=t0.height_px,
+            )
+        else:
+            intr = intrinsics_for(
+                sample_path=t0.path,
+                make=t0.make,
+                model=t0.model,
+                focal_length_mm=t0.focal_length_mm,
+                width_px=t0.width_px,
+                height_px=t0.height_px,
+            )
         intrinsics.append(intr)
         camera_of[members] = c
     if len(groups) > 1:
@@ -209,7 +234,7 @@ def read_block(
         ]
         if not positioned:
             continue
-        result = frames_from_tags(positioned, camera=_camera(intr), where=str(image_dir))
+        result = frames_from_tags(positioned, camera=_camera(intr, camera), where=str(image_dir))
         f = result.frames
         if reference is not None and f.alt_reference is not reference:
             raise HandoffInputError(

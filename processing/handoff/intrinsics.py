@@ -20,6 +20,7 @@ import os
 from dataclasses import dataclass
 from fractions import Fraction
 
+from planner.camera import Camera
 from planner.camera_db import match_exif
 
 #: Millimetres per FocalPlaneResolutionUnit (EXIF: 2 inch, 3 cm, 4 mm, 5 um).
@@ -94,6 +95,33 @@ def _focal_plane_tags(path: str | os.PathLike[str]) -> dict[str, str]:
         "Exif.Photo.FocalLengthIn35mmFilm",
     )
     return {k: str(exif[k]) for k in keys if k in exif}
+
+
+def given_intrinsics(
+    camera: Camera,
+    *,
+    make: str | None,
+    model: str | None,
+    focal_length_mm: float | None,
+    width_px: int,
+    height_px: int,
+) -> Intrinsics:
+    """The intrinsics of images taken with ``camera`` (``--camera``), at the images' own size: a
+    scaled copy keeps the field of view, so the focal length in pixels scales with the width."""
+    key = (make or "", model or "", float(focal_length_mm or 0.0), int(width_px), int(height_px))
+    landscape_image = width_px >= height_px
+    landscape_sensor = camera.image_width_px >= camera.image_height_px
+    across_mm = camera.sensor_width_mm if landscape_image == landscape_sensor else camera.sensor_height_mm
+    pitch = across_mm / width_px
+    return Intrinsics(
+        key=key,
+        width_px=width_px,
+        height_px=height_px,
+        focal_px=camera.focal_length_mm / pitch,
+        focal_length_mm=camera.focal_length_mm,
+        pixel_pitch_mm=pitch,
+        source=f"given: {camera.id} ({camera.focal_length_mm:g} mm, {across_mm:g} mm across {width_px} px)",
+    )
 
 
 def intrinsics_for(

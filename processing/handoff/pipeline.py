@@ -16,6 +16,7 @@ from enum import StrEnum
 from pathlib import Path
 from typing import Any
 
+from planner.camera import Camera
 from planner.outputs import check_output_dir, staged_output_dir
 
 from ..accuracy import table_3_2
@@ -51,6 +52,7 @@ class HandoffOptions:
     overwrite: bool = False
     node_url: str | None = None
     token: str = ""
+    camera: Camera | None = None
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -94,6 +96,7 @@ def handoff(
         ground=options.ground,
         min_overlap_pct=options.min_overlap_pct,
         line_neighbours=options.line_neighbours,
+        camera=options.camera,
     )
     gcps, plan = _load_control(options, prepared)
     from .colmap_project import project_info

@@ -7,6 +7,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+from planner.camera import Camera
+
 from ..ground import Ground
 from ..inputs import ground_from_options
 from .block import Block, read_block
@@ -36,12 +38,13 @@ def prepare(
     ground: GroundOptions | None = None,
     min_overlap_pct: float = DEFAULT_MIN_OVERLAP_PCT,
     line_neighbours: int = DEFAULT_LINE_NEIGHBOURS,
+    camera: Camera | None = None,
     progress: Callable[[int], None] | None = None,
 ) -> Prepared:
     """Read the block, choose the ground (:func:`processing.inputs.ground_from_options`: the
     same rules and messages as ``sfap check``) and the pairs."""
     ground = ground or GroundOptions()
-    block = read_block(images, progress=progress)
+    block = read_block(images, camera=camera, progress=progress)
     chosen: Ground | None = None
     description = "none (no image has a position)"
     if block.frames:

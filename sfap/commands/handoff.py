@@ -12,6 +12,7 @@ import click
 from processing.handoff.pipeline import Engine, HandoffOptions, HandoffResult, handoff
 from processing.handoff.prepare import GroundOptions
 from processing.handoff.quicklook import DEFAULT_MAX_IMAGE_SIZE_PX
+from processing.image_tags import camera_option
 
 from ..common import dumps_json, echo_table, json_option, overwrite_option
 
@@ -59,6 +60,14 @@ _ENGINES = [e.value for e in Engine]
     help="Check points kept out of the fit: names separated by commas, or a count (spread over the block).",
 )
 @click.option(
+    "--camera",
+    "camera_id",
+    default=None,
+    help="The camera, when its EXIF does not say (as for `sfap check`): an id from `sfap cameras`, or a "
+    "TOML file with the keys of a mission spec's [camera] table. Frames of a smaller size are taken "
+    "as scaled copies (the same field of view).",
+)
+@click.option(
     "--dem", type=click.Path(exists=True, dir_okay=False, path_type=Path), help="Ground DEM, GeoTIFF, m AMSL."
 )
 @click.option("--ground-elevation-m", type=float, default=None, help="Flat ground at this elevation, m AMSL.")
@@ -88,6 +97,7 @@ def command(
     gcp: Path | None,
     gcp_crs: str | None,
     check_points: str | None,
+    camera_id: str | None,
     dem: Path | None,
     ground_elevation_m: float | None,
     takeoff_elevation_m: float | None,
@@ -133,6 +143,7 @@ def command(
         min_overlap_pct=min_overlap_pct,
         max_image_size_px=max_image_size_px,
         overwrite=overwrite,
+        camera=camera_option(camera_id) if camera_id else None,
     )
     result = handoff(images, work, options, progress=say)
     _present(result, as_json)

@@ -192,3 +192,57 @@ def test_bad_input_exits_2_with_the_fix(tmp_path: Path, block) -> None:  # type:
     assert code == 2 and "usable control point" in err
     assert not any((tmp_path / n).exists() for n in "abcde")
     assert "Traceback" not in err
+
+
+def test_a_given_camera_sets_the_intrinsics(tmp_path: Path, block) -> None:  # type: ignore[no-untyped-def]
+    """--camera FILE.toml: the frames (320 px wide) are scaled copies of a 640 px camera with a
+    6.4 mm sensor and an 8 mm lens, so the focal length is 8 mm / (6.4 mm / 320 px) = 400 px
+    in the COLMAP database, whatever the frames' own EXIF says (4 mm, 0.02 mm pixels: 200 px)."""
+    import pycolmap
+
+    images, _ = block
+    camera = tmp_path / "camera.toml"
+    camera.write_text(
+        "[camera]\nsensor_width_mm = 6.4\nsensor_height_mm = 4.8\nimage_width_px = 640\n"
+        "image_height_px = 480\nfocal_length_mm = 8\n"
+    )
+    args = ["handoff", str(images), "--to", "colmap", "--ground-elevation-m", "0"]
+    code, _, err = _run(*args, "--camera", str(camera), "-o", str(tmp_path / "given"))
+    assert code == 0, err
+    code, _, err = _run(*args, "-o", str(tmp_path / "exif"))
+    assert code == 0, err
+
+    def focal_px(work: Path) -> list[float]:
+        database = pycolmap.Database.open(str(work / "database.db"))
+        try:
+            return [float(c.params[0]) for c in database.read_all_cameras()]
+        finally:
+            database.close()
+
+    assert focal_px(tmp_path / "given") == [pytest.approx(400.0)]
+    assert focal_px(tmp_path / "exif") == [pytest.approx(200.0)]
+
+
+def test_frames_with_no_focal_length_ask_for_the_camera(tmp_path: Path, block) -> None:  # type: ignore[no-untyped-def]
+    """Tiny frames whose EXIF gives no focal length: no traceback and no nonsense camera, but
+    exit 2 naming --camera; with --camera the project is written."""
+    import pyexiv2
+
+    images, _ = block
+    for path in images.iterdir():
+        with pyexiv2.Image(str(path)) as image:
+            image.modify_exif(
+                {
+                    "Exif.Photo.FocalLength": None,
+                    "Exif.Photo.FocalPlaneXResolution": None,
+                    "Exif.Photo.FocalPlaneYResolution": None,
+                    "Exif.Photo.FocalPlaneResolutionUnit": None,
+                }
+            )
+    args = ["handoff", str(images), "--to", "odm", "--ground-elevation-m", "0"]
+    code, _, err = _run(*args, "-o", str(tmp_path / "w"))
+    assert code == 2 and "--camera" in err and "Traceback" not in err
+    assert not (tmp_path / "w").exists()
+    code, _, err = _run(*args, "--camera", "canon-eos-350d-20mm", "-o", str(tmp_path / "w"))
+    assert code == 0, err
+    assert (tmp_path / "w" / "geo.txt").is_file()
