@@ -44,7 +44,18 @@ def test_the_tour_section_lists_every_command() -> None:
     commands = tour_commands(README.read_text(encoding="utf-8"))
     names = [shlex.split(c.rstrip("&"))[1] for c in commands]
     assert all(shlex.split(c)[0] == "sfap" for c in commands), commands
-    for name in ("cameras", "plan", "sim", "upload", "download", "monitor", "clear", "geotag", "check"):
+    for name in (
+        "cameras",
+        "plan",
+        "sim",
+        "upload",
+        "download",
+        "monitor",
+        "clear",
+        "geotag",
+        "check",
+        "handoff",
+    ):
         assert name in names, f"the tour runs no `sfap {name}`"
     # the simulator runs in the background and comes before every command that talks to it
     sim = names.index("sim")
