@@ -958,6 +958,7 @@ def test_simulated_flight_with_a_nadir_gimbal_keeps_the_heading(tmp_path: Path) 
         speedup=400.0,
         tlog_path=tlog,
         home=plan.home,
+        streams_on_request=False,  # no ground station asks for telemetry here: send it unasked
     )
     with vehicle:
         vehicle.load_mission(plan.mission.items)
