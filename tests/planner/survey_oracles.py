@@ -31,6 +31,7 @@ def make_spec(overrides: dict[str, Any] | None = None, camera: dict[str, Any] | 
         "turnaround_m": 10.0,
     }
     survey.update(overrides or {})
+    survey = {key: value for key, value in survey.items() if value is not None}  # None: drop the key
     data = {
         "name": "test",
         "area": "area.geojson",
