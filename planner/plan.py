@@ -132,6 +132,10 @@ class Summary:
     flight_time_s: float
     item_count: int
     crs: str
+    max_item_count: int = 0  # the autopilot's mission capacity assumed (planner.summary)
+    stereo_seen_2_pct: float = 0.0  # share of the area seen by >= 2 nadir frames (planner.coverage)
+    stereo_seen_3_pct: float = 0.0  # share seen by >= 3 nadir frames
+    stereo_seen_3_target_pct: float = 0.0  # the share >= 3 the plan promises (0: overlap too low)
     warnings: tuple[str, ...] = ()
     terrain: dict[str, object] | None = None  # planner.terrain_follow.TerrainSummary, with a DEM
 

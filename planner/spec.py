@@ -64,6 +64,8 @@ class VehicleSpec:
     max_alt_agl_m: float
     autopilot: Autopilot
     climb_rate_m_s: float
+    #: The longest flight one battery allows (a longer plan is flagged), minutes.
+    max_flight_time_min: float = 30.0
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -76,6 +78,8 @@ class TerrainSpec:
     sample_spacing_m: float = 10.0
     max_climb_rate_m_s: float = 3.0
     max_descent_rate_m_s: float = 2.0
+    #: Fly at constant altitude even where the terrain opens gaps between the frames.
+    accept_overlap_loss: bool = False
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -94,6 +98,7 @@ class MissionSpec:
 _TOP_KEYS = {"name", "area", "exclude", "camera", "survey", "vehicle", "terrain"}
 _TERRAIN_KEYS = {
     "dem", "follow", "tolerance_m", "sample_spacing_m", "max_climb_rate_m_s", "max_descent_rate_m_s",
+    "accept_overlap_loss",
 }  # fmt: skip
 _SURVEY_KEYS = {
     "gsd_cm", "altitude_agl_m", "front_overlap_pct", "side_overlap_pct", "speed_m_s",
@@ -104,7 +109,7 @@ _SURVEY_KEYS = {
 _OBLIQUE_KEYS = {"tilt_deg", "headings_deg"}
 _VEHICLE_KEYS = {
     "type", "home", "home_alt_amsl_m", "takeoff_alt_m", "max_alt_agl_m", "autopilot",
-    "climb_rate_m_s",
+    "climb_rate_m_s", "max_flight_time_min",
 }  # fmt: skip
 
 
@@ -184,6 +189,7 @@ def _parse_terrain(value: Any, base: Path, where: str) -> TerrainSpec:
         sample_spacing_m=_number(value, "sample_spacing_m", section, 1.0, 200.0, default=10.0),
         max_climb_rate_m_s=_number(value, "max_climb_rate_m_s", section, 0.1, 20.0, default=3.0),
         max_descent_rate_m_s=_number(value, "max_descent_rate_m_s", section, 0.1, 20.0, default=2.0),
+        accept_overlap_loss=_get(value, "accept_overlap_loss", bool, section, default=False),
     )
 
 
@@ -297,6 +303,14 @@ def _parse_vehicle(value: Any, where: str) -> VehicleSpec:
         max_alt_agl_m=max_alt,
         autopilot=autopilot,
         climb_rate_m_s=_number(value, "climb_rate_m_s", section, 0.2, 20.0, default=2.5),
+        max_flight_time_min=_number(
+            value,
+            "max_flight_time_min",
+            section,
+            1.0,
+            1440.0,
+            default=30.0 if vehicle_type is VehicleType.MULTIROTOR else 90.0,
+        ),  # fmt: skip
     )
 
 
