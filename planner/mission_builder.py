@@ -58,6 +58,8 @@ class PassPlan:
     near_gsd_cm: float
     far_gsd_cm: float
     centre_gsd_cm: float
+    #: Height of this pass when it differs from the mission's (multi-scale blocks), metres.
+    alt_agl_m: float | None = None
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -85,6 +87,7 @@ class _Columns:
     up: list[NDArray[np.float64]] = field(default_factory=list)
     tilt: list[NDArray[np.float64]] = field(default_factory=list)
     gsd: list[NDArray[np.float64]] = field(default_factory=list)
+    alt: list[NDArray[np.float64]] = field(default_factory=list)
 
 
 def build_mission(
@@ -152,6 +155,7 @@ def build_mission(
     position = home_xy
     columns = _Columns()
     lines: dict[int, tuple[FlightLine, ...]] = {}
+    alt_sequence: list[float] = []  # the height of each pass flown, for the climbs in the time
 
     def waypoint(p: tuple[float, float], hold_s: float = 0.0, transit: bool = True) -> None:
         nonlocal position
@@ -170,6 +174,8 @@ def build_mission(
         if not segs:
             lines[pp.index] = ()
             continue
+        alt = pp.alt_agl_m if pp.alt_agl_m is not None else alt_agl_m
+        alt_sequence.append(alt)
         rows: dict[int, list[int]] = {}
         for k, s in enumerate(segs):
             rows.setdefault(s.row, []).append(k)
@@ -251,6 +257,7 @@ def build_mission(
                 columns.up.append(np.full(n, up_bearing_deg(heading, spec.orientation)))
             columns.tilt.append(np.full(n, pp.tilt_deg))
             columns.gsd.append(np.full(n, pp.centre_gsd_cm))
+            columns.alt.append(np.full(n, alt))
         lines[pp.index] = tuple(pass_lines)
 
     # home, around no-fly zones, then RTL
@@ -270,7 +277,7 @@ def build_mission(
     flight_time = _flight_time_s(
         path_xy, transit_flags, speed_m_s, survey.transit_speed_m_s, alt_agl_m,
         vehicle.takeoff_alt_m, vehicle.climb_rate_m_s, holds_s, vehicle.type,
-        len(stations) if hover else 0,
+        len(stations) if hover else 0, alt_sequence_m=alt_sequence,
     )  # fmt: skip
     mission = Mission(
         items=tuple(items),
@@ -325,7 +332,7 @@ def _stations(spec: MissionSpec, frame: LocalFrame, alt_agl_m: float, c: _Column
     x, y = cat(c.x, float), cat(c.y, float)
     up, tilt = cat(c.up, float), cat(c.tilt, float)
     n = x.shape[0]
-    alt = np.full(n, alt_agl_m)
+    alt = cat(c.alt, float) if c.alt else np.full(n, alt_agl_m)
     if n:
         corners = footprint_corners(spec.camera, x, y, alt, up, tilt)
         lon, lat = frame.to_lonlat(x, y)
@@ -364,6 +371,7 @@ def _flight_time_s(
     holds_s: float,
     vehicle_type: VehicleType,
     stops: int,
+    alt_sequence_m: list[float] | None = None,
 ) -> float:
     """Estimated flight time: legs at their speed, climbs and the final descent at the climb
     rate, holds, and for a multirotor a stop-and-go (v / a) at every sharp turn and stop."""
@@ -371,7 +379,10 @@ def _flight_time_s(
     fast = transit_speed_m_s or speed_m_s
     speeds = np.array([fast if t else speed_m_s for t in transit_flags[: len(legs)]])
     time = float(np.sum(legs / speeds)) if len(legs) else 0.0
-    time += (takeoff_alt_m + abs(alt_agl_m - takeoff_alt_m) + alt_agl_m) / climb_rate_m_s
+    heights = alt_sequence_m or [alt_agl_m]  # passes at other heights: a climb or descent between
+    vertical_m = takeoff_alt_m + abs(heights[0] - takeoff_alt_m) + heights[-1]
+    vertical_m += float(np.sum(np.abs(np.diff(heights)))) if len(heights) > 1 else 0.0
+    time += vertical_m / climb_rate_m_s
     time += holds_s
     if vehicle_type is not VehicleType.FIXED_WING and len(path_xy) > 2:
         d = np.diff(path_xy, axis=0)

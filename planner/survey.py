@@ -34,7 +34,7 @@ from .geo import LocalFrame, geodesic_area_m2
 from .lines import layout_pass, split_run
 from .mission import HomePosition, VehicleType
 from .mission_builder import PassPlan, build_mission
-from .plan import FlightPass, PassKind, SurveyPlan
+from .plan import FlightPass, PassKind, PlanLayout, SurveyPlan
 from .spec import MissionSpec, TriggerMode
 from .terrain import Dem
 from .terrain_follow import TerrainSummary, apply_terrain
@@ -51,6 +51,7 @@ class _PassDef:
     look_heading_deg: float | None
     front_overlap_pct: float
     side_overlap_pct: float
+    alt_agl_m: float | None = None  # a multi-scale pass at its own height ([[survey.scale]])
 
 
 def plan_survey(spec: MissionSpec) -> SurveyPlan:
@@ -140,6 +141,15 @@ def plan_polygons(spec: MissionSpec, polygons: list[Polygon], exclusions: list[P
     else:
         direction = auto_direction_deg(area_xy)
     pass_defs = _pass_definitions(spec, direction, true_north_grid)
+    if survey.scales:
+        from .multiscale import scale_pass_defs
+
+        if spec.terrain is not None:
+            raise SpecError(
+                f"{spec.source}: [[survey.scale]] passes are not planned over a [terrain] DEM yet; "
+                f"plan each height as its own mission, or remove [terrain]"
+            )
+        pass_defs += [_PassDef(**fields) for fields in scale_pass_defs(spec, direction)]
 
     blocked_xy = (
         shapely.union_all([z.buffer(survey.exclusion_clearance_m) for z in zones_xy]) if zones_xy else None
@@ -149,6 +159,7 @@ def plan_polygons(spec: MissionSpec, polygons: list[Polygon], exclusions: list[P
     scale = 1.0  # footprint scale at the highest ground under the frames (terrain following)
     for _attempt in range(_TERRAIN_ATTEMPTS):
         del warnings[warnings_before_passes:]
+        used_scale = scale  # the footprint scale of the passes built in this attempt
         pass_plans, views, speed_m_s = _lay_out_passes(
             spec, pass_defs, area_xy, blocked_xy, alt_agl_m, gsd_cm, scale, warnings
         )
@@ -201,7 +212,7 @@ def plan_polygons(spec: MissionSpec, polygons: list[Polygon], exclusions: list[P
             look_heading_deg=(
                 None if p.look_heading_deg is None else (p.look_heading_deg - true_north_grid) % 360.0
             ),
-            alt_agl_m=alt_agl_m,
+            alt_agl_m=p.alt_agl_m if p.alt_agl_m is not None else alt_agl_m,
             line_spacing_m=p.line_spacing_m,
             trigger_distance_m=p.trigger_distance_m,
             lines=built.lines[p.index],
@@ -269,6 +280,15 @@ def plan_polygons(spec: MissionSpec, polygons: list[Polygon], exclusions: list[P
         mission=built.mission,
         summary=summary,
         warnings=tuple(warnings),
+        layout=PlanLayout(
+            spec=spec,
+            alt_agl_m=alt_agl_m,
+            speed_m_s=speed_m_s,
+            pass_plans=tuple(pass_plans),
+            true_north_grid_deg=true_north_grid,
+            dem=dem,
+            footprint_scale=used_scale,
+        ),
     )
 
 
@@ -300,14 +320,15 @@ def _lay_out_passes(
             if pdef.look_heading_deg is not None
             else ex.up_bearing_deg(pdef.direction_deg, spec.orientation)
         )
-        flat = ex.frame_rectangle(camera, alt_agl_m, pdef.direction_deg, up, pdef.tilt_deg)
+        pass_alt_m = pdef.alt_agl_m if pdef.alt_agl_m is not None else alt_agl_m
+        flat = ex.frame_rectangle(camera, pass_alt_m, pdef.direction_deg, up, pdef.tilt_deg)
         rect = ex.FrameRectangle(
             u_min_m=flat.u_min_m * scale, u_max_m=flat.u_max_m * scale,
             v_min_m=flat.v_min_m * scale, v_max_m=flat.v_max_m * scale,
         )  # fmt: skip
         trigger_m = ex.air_base_m(rect.along_m, pdef.front_overlap_pct)
         spacing_m = ex.air_base_m(rect.across_m, pdef.side_overlap_pct)
-        speed_m_s = _check_speed(spec, pdef, trigger_m, alt_agl_m, speed_m_s, warnings)
+        speed_m_s = _check_speed(spec, pdef, trigger_m, pass_alt_m, speed_m_s, warnings)
         area_uv = _rotate(area_xy, pdef.direction_deg)
         blocked_uv = _rotate(blocked_xy, pdef.direction_deg) if blocked_xy is not None else None
         hover = survey.trigger is TriggerMode.HOVER
@@ -327,7 +348,7 @@ def _lay_out_passes(
             )
         if index == 0:
             views = view_shares(area_uv, segments, rect, trigger_m, spacing_m)
-        near_gsd, far_gsd = near_far_gsd_cm(camera, alt_agl_m, pdef.tilt_deg)
+        near_gsd, far_gsd = near_far_gsd_cm(camera, pass_alt_m, pdef.tilt_deg)
         pass_plans.append(
             PassPlan(
                 index=index,
@@ -344,7 +365,10 @@ def _lay_out_passes(
                 far_gsd_cm=far_gsd,
                 centre_gsd_cm=(
                     gsd_cm if pdef.tilt_deg == 0 else max(tilted_gsd_cm(camera, alt_agl_m, pdef.tilt_deg))
-                ),
+                )
+                if pdef.alt_agl_m is None
+                else camera.gsd_cm(pdef.alt_agl_m),
+                alt_agl_m=pdef.alt_agl_m,
             )
         )
     assert views is not None
