@@ -29,6 +29,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "monitor": ("monitor", "Record camera triggers and telemetry during a flight."),
     "geotag": ("geotag", "Geotag frames from the flight's own telemetry log."),
     "check": ("check", "Check coverage, overlap, B/H, GSD and blur of images or a plan."),
+    "gcp-plan": ("gcp_plan", "Lay out ground control and check points over a planned survey."),
 }
 
 log = logging.getLogger("sfap")
