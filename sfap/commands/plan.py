@@ -152,6 +152,17 @@ def command(
             ("lowest overlaps", lows),
             ("waypoints added for terrain", f"{terrain['waypoints_added']}"),
         ]
+    if spec.survey.scales:
+        from planner.multiscale import pass_summaries
+
+        for p in pass_summaries(plan):
+            rows.append(
+                (
+                    f"pass {p['pass']} ({p['name']})",
+                    f"{p['alt_agl_m']:.0f} m, GSD {p['gsd_cm']:.2f} cm, spacing {p['line_spacing_m']:.1f} m, "
+                    f"trigger {p['trigger_distance_m']:.1f} m, {p['photo_count']:,} photos",
+                )
+            )
     for sortie in sorties:
         s = sortie.plan.summary
         seconds = round(s.flight_time_s)
@@ -164,4 +175,13 @@ def command(
         )
     echo_table(rows, title=f"{plan.name}: planned into {out_dir}")
     for warning in plan.warnings:
+        if sorties and warning.startswith("the flight takes"):
+            continue  # the sorties below each fit one battery
         click.echo(f"warning: {warning}", err=True)
+    if sorties:
+        usable = spec.vehicle.usable_flight_s or 0.0
+        click.echo(
+            f"{len(sorties)} sorties of at most {usable / 60.0:.1f} min each (endurance less reserve) "
+            f"in {out_dir}/sortie-NN/",
+            err=True,
+        )
