@@ -110,7 +110,7 @@ def split_sorties(plan: SurveyPlan) -> list[Sortie]:
         return cache[key]
 
     chunks: list[tuple[int, int]] = []
-    start = 0
+    start = previous = 0
     while start < len(units):
         limit = 1
         while start + limit < len(units) and units[start + limit].group == units[start].group:
@@ -118,9 +118,23 @@ def split_sorties(plan: SurveyPlan) -> list[Sortie]:
         built, fits = attempt(start, 1)
         if not fits:
             raise PlanningError(_too_long(plan, layout, units[start], built, usable_s, capacity))
-        # Exponential then binary search for the most lines that fit (time grows with lines).
-        good, step, bad = 1, 1, limit + 1
-        while good + step <= limit:
+        # Galloping search from the last sortie's line count, then binary search, for the most
+        # lines that fit (time grows with the lines); every count kept was built and fits.
+        good, bad = 1, limit + 1
+        guess = min(max(previous, 1), limit)
+        if guess > 1:
+            if attempt(start, guess)[1]:
+                good = guess
+            else:
+                bad, step = guess, 1
+                while bad - step > good:
+                    if attempt(start, bad - step)[1]:
+                        good = bad - step
+                        break
+                    bad -= step
+                    step *= 2
+        step = 1
+        while bad == limit + 1 and good + step <= limit:
             if not attempt(start, good + step)[1]:
                 bad = good + step
                 break
@@ -134,6 +148,7 @@ def split_sorties(plan: SurveyPlan) -> list[Sortie]:
                 bad = mid
         chunks.append((start, good))
         start += good
+        previous = good
     sorties = []
     for number, (first, count) in enumerate(chunks, start=1):
         built, _ = attempt(first, count)
