@@ -154,7 +154,12 @@ def intersection_angle_deg(air_base: float, height_m: float) -> float:
     return math.degrees(2.0 * math.atan(air_base / (2.0 * height_m)))
 
 
-def depth_precision_m(camera: Camera, air_base: float, height_m: float) -> float:
-    """sigma_Z = (H/B) (H/f) sigma_image, with sigma_image = SIGMA_IMAGE_PX pixels."""
-    sigma_image_m = SIGMA_IMAGE_PX * camera.pixel_pitch_y_mm / 1000.0
+def depth_precision_m(
+    camera: Camera, air_base: float, height_m: float, orientation: Orientation = Orientation.LANDSCAPE
+) -> float:
+    """sigma_Z = (H/B) (H/f) sigma_image, with sigma_image = SIGMA_IMAGE_PX pixels measured along
+    the base: the along-track axis of the image (y in landscape, x in portrait), whose pixel
+    pitch is the one that matters when the pixels are not square."""
+    pitch_mm = camera.pixel_pitch_y_mm if orientation is Orientation.LANDSCAPE else camera.pixel_pitch_x_mm
+    sigma_image_m = SIGMA_IMAGE_PX * pitch_mm / 1000.0
     return (height_m / air_base) * (height_m / (camera.focal_length_mm / 1000.0)) * sigma_image_m

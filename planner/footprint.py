@@ -22,7 +22,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .camera import Camera
-from .errors import PlanningError
+from .errors import SpecError
+from .geo import LocalFrame
+from .terrain import Dem
 
 #: Corner order: image top-left, top-right, bottom-right, bottom-left.
 _CORNER_SIGNS = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
@@ -76,7 +78,7 @@ def footprint_corners(
     down = -rays[..., 2]
     if np.any(down <= 1e-9 * camera.focal_length_mm):
         worst = float(np.max(tilt))
-        raise PlanningError(
+        raise SpecError(
             f"a tilt of {worst:.1f} deg off nadir puts the far edge of the frame at or above the "
             f"horizon (half field of view {math.degrees(camera.half_fov_rad()[1]):.1f} deg); "
             f"lower tilt_deg"
@@ -108,23 +110,130 @@ def tilted_gsd_cm(
     phi = math.atan2(row_offset_mm, camera.focal_length_mm)
     angle = math.radians(tilt_deg) + phi
     if angle >= math.pi / 2 - 1e-9:
-        raise PlanningError(
-            f"tilt {tilt_deg:.1f} deg looks at or above the horizon at that row; lower tilt_deg"
-        )
+        raise SpecError(f"tilt {tilt_deg:.1f} deg looks at or above the horizon at that row; lower tilt_deg")
     f = camera.focal_length_mm
     radial = 100.0 * camera.pixel_pitch_y_mm * height_m * math.cos(phi) ** 2 / (f * math.cos(angle) ** 2)
     lateral = 100.0 * camera.pixel_pitch_x_mm * height_m * math.cos(phi) / (f * math.cos(angle))
     return radial, lateral
 
 
+def pixel_gsd_cm(camera: Camera, height_m: float, tilt_deg: float, x_mm: float, y_mm: float) -> float:
+    """GSD (cm) of the pixel at sensor position (x_mm right, y_mm down from the centre) on flat
+    ground: the ground length of one pixel step along the image's x and y, the coarser of the two
+    (cast rays through the pixel's edges)."""
+    rotation = camera_axes(0.0, tilt_deg)[0]
+    px, py, f = camera.pixel_pitch_x_mm, camera.pixel_pitch_y_mm, camera.focal_length_mm
+
+    def ground(xs: float, ys: float) -> NDArray[np.float64]:
+        ray = rotation @ np.array([xs, ys, f])
+        if -ray[2] <= 1e-12 * f:
+            raise SpecError(
+                f"tilt {tilt_deg:.1f} deg looks at or above the horizon at the frame's edge; lower tilt_deg"
+            )
+        return np.asarray(ray[:2] * height_m / -ray[2], float)
+
+    step_x = np.linalg.norm(ground(x_mm + px / 2, y_mm) - ground(x_mm - px / 2, y_mm))
+    step_y = np.linalg.norm(ground(x_mm, y_mm + py / 2) - ground(x_mm, y_mm - py / 2))
+    return 100.0 * float(max(step_x, step_y))
+
+
 def near_far_gsd_cm(camera: Camera, height_m: float, tilt_deg: float) -> tuple[float, float]:
-    """Finest and coarsest GSD in a frame (the coarser axis at the near and far edges)."""
+    """Finest and coarsest GSD in a frame over flat ground (the coarser pixel axis).
+
+    A nadir frame over flat ground is a uniform scaling of the sensor (image plane parallel to
+    the ground), so its GSD is the same everywhere: Eq. 3-4. A tilted frame's GSD grows toward
+    its far edge and, along that edge, toward the far corners: the worst is at a far corner, the
+    finest at the middle of the near edge."""
     if tilt_deg == 0.0:
-        # Nadir over flat ground: the GSD grows toward the corners by 1/cos(phi); the figure
-        # quoted for a nadir frame is the centre's, as in Eq. 3-4.
         g = camera.gsd_cm(height_m)
         return g, g
-    half_h = camera.sensor_height_mm / 2.0
-    near = tilted_gsd_cm(camera, height_m, tilt_deg, -half_h)
-    far = tilted_gsd_cm(camera, height_m, tilt_deg, half_h)
-    return max(near), max(far)
+    half_w, half_h = camera.sensor_width_mm / 2.0, camera.sensor_height_mm / 2.0
+    # The far edge is the top of the image (y negative in the camera frame).
+    near = pixel_gsd_cm(camera, height_m, tilt_deg, 0.0, half_h)
+    far = max(pixel_gsd_cm(camera, height_m, tilt_deg, sx * half_w, -half_h) for sx in (-1.0, 1.0))
+    return near, far
+
+
+def image_grid_mm(camera: Camera, samples: int) -> NDArray[np.float64]:
+    """Sensor points (x_mm, y_mm) of a samples x samples grid spanning the image, border
+    included, row by row from the image's top-left."""
+    xs = np.linspace(-camera.sensor_width_mm / 2.0, camera.sensor_width_mm / 2.0, samples)
+    ys = np.linspace(-camera.sensor_height_mm / 2.0, camera.sensor_height_mm / 2.0, samples)
+    gx, gy = np.meshgrid(xs, ys)
+    return np.column_stack([gx.ravel(), gy.ravel()])
+
+
+def cast_on_dem(
+    camera: Camera,
+    x_m: ArrayLike,
+    y_m: ArrayLike,
+    z_amsl_m: ArrayLike,
+    up_bearing_deg: ArrayLike,
+    tilt_deg: ArrayLike,
+    dem: Dem,
+    frame: LocalFrame,
+    sensor_mm: NDArray[np.float64],
+) -> NDArray[np.float64]:
+    """Where the rays through the sensor points ``sensor_mm`` (K, 2) of each frame first meet
+    the DEM, shape (N, K, 3) (x, y, ground elevation AMSL).
+
+    Each ray is marched from where it crosses the DEM's highest elevation to where it crosses its
+    lowest, in steps of at most one DEM cell horizontally; the first step below the ground is
+    refined by bisection (to a millimetre). A ray that never comes down to the ground (a
+    tilt at or above the horizon) raises SpecError; ground outside the DEM raises TerrainError.
+    """
+    x = np.atleast_1d(np.asarray(x_m, float))
+    y = np.atleast_1d(np.asarray(y_m, float))
+    z = np.atleast_1d(np.asarray(z_amsl_m, float))
+    up = np.atleast_1d(np.asarray(up_bearing_deg, float))
+    tilt = np.atleast_1d(np.asarray(tilt_deg, float))
+    x, y, z, up, tilt = np.broadcast_arrays(x, y, z, up, tilt)
+    n, k = x.shape[0], sensor_mm.shape[0]
+    rays_cam = np.column_stack([sensor_mm, np.full(k, camera.focal_length_mm)])
+    rays = np.einsum("nij,kj->nki", camera_axes(up, tilt), rays_cam)  # (N, K, 3)
+    rays /= np.linalg.norm(rays, axis=-1, keepdims=True)
+    down = -rays[..., 2]
+    if np.any(down <= 1e-6):
+        raise SpecError(
+            f"a tilt of {float(np.max(tilt)):.1f} deg off nadir puts part of the frame at or above the "
+            f"horizon; lower tilt_deg"
+        )
+    z_low, z_high = dem.elevation_range_m
+    ox, oy, oz = (np.repeat(a[:, None], k, axis=1) for a in (x, y, z))
+    t_first = np.maximum((oz - z_high) / down, 0.0)  # the ray is above all ground before this
+    t_last = np.maximum((oz - z_low) / down, t_first)
+    horizontal = np.hypot(rays[..., 0], rays[..., 1])
+    cell = dem.cell_size_m(frame)
+    steps = int(min(2000, max(2, math.ceil(float(np.max((t_last - t_first) * horizontal)) / cell) + 1)))
+    ox, oy, oz, dx, dy, dz = (a.ravel() for a in (ox, oy, oz, rays[..., 0], rays[..., 1], rays[..., 2]))
+    t0, t1 = t_first.ravel(), t_last.ravel()
+
+    def height_above_ground(t: NDArray[np.float64], idx: NDArray[np.intp]) -> NDArray[np.float64]:
+        px, py = ox[idx] + t * dx[idx], oy[idx] + t * dy[idx]
+        return np.asarray(oz[idx] + t * dz[idx] - dem.elevation_at(px, py, frame), float)
+
+    all_idx = np.arange(ox.shape[0])
+    lo = t0.copy()
+    hi = t1.copy()
+    found = np.zeros(ox.shape[0], bool)
+    previous = t0.copy()
+    for s in range(1, steps + 1):
+        todo = np.flatnonzero(~found)
+        if todo.size == 0:
+            break
+        t = t0[todo] + (t1[todo] - t0[todo]) * s / steps
+        below = height_above_ground(t, todo) <= 0.0
+        hit = todo[below]
+        lo[hit], hi[hit] = previous[hit], t[below]
+        found[hit] = True
+        previous[todo] = t
+    for _ in range(40):
+        mid = (lo + hi) / 2.0
+        above = height_above_ground(mid, all_idx) > 0.0
+        lo = np.where(above, mid, lo)
+        hi = np.where(above, hi, mid)
+        if float(np.max(hi - lo)) < 1e-3:
+            break
+    t = (lo + hi) / 2.0
+    out = np.stack([ox + t * dx, oy + t * dy, oz + t * dz], axis=-1)
+    return out.reshape(n, k, 3)

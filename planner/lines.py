@@ -25,6 +25,7 @@ How coverage to the edges is guaranteed (QGC and Mission Planner do not guarante
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -35,6 +36,9 @@ from shapely.geometry import LineString, MultiPolygon, Polygon, box
 
 from .exposure import FrameRectangle
 
+#: Extra stations beyond each unblocked end of a run: the area's edges are then seen by three
+#: frames along the line (when the forward overlap is at least 2/3), as SfM wants.
+END_STATIONS = 2
 #: Residual pieces smaller than this (m2) are numerical noise, not gaps.
 _RESIDUAL_NOISE_M2 = 0.01
 _EPS = 1e-6
@@ -55,6 +59,10 @@ class Segment:
     count: int
     fill: bool = False
     direction: int = 1
+    #: The run continues another run of the same line just below (``join_lo``) or above
+    #: (``join_hi``) in u: no lead-in or lead-out on that side, the vehicle flies straight on.
+    join_lo: bool = False
+    join_hi: bool = False
 
     @property
     def u_last_m(self) -> float:
@@ -67,8 +75,10 @@ class Segment:
 
     def camera_on_u(self) -> tuple[float, float]:
         """(start, stop) of the camera-on run in flight order: photo at start, then every
-        spacing; the stop lies half a spacing past the last station so that it surely fires."""
-        half = 0.5 * self.spacing_m if self.count > 1 else 0.0
+        spacing; the stop lies half a spacing past the last station, so that the last photo
+        fires and the next does not (with the margins of planner.trigger), and a run of one
+        station is a line of nonzero length too."""
+        half = 0.5 * self.spacing_m
         if self.direction > 0:
             return self.u_first_m, self.u_last_m + half
         return self.u_last_m, self.u_first_m - half
@@ -95,10 +105,17 @@ def layout_pass(
     rect: FrameRectangle,
     trigger_distance_m: float,
     line_spacing_m: float,
+    *,
+    end_stations: int = END_STATIONS,
+    max_run_stations: int | None = None,
 ) -> PassLayout:
     """Place the lines and camera-on segments of one pass (see the module docstring).
 
     ``blocked_uv`` is where the vehicle must not fly: exclusions buffered by the clearance.
+    ``trigger_distance_m`` is the largest station spacing; ``end_stations`` extra stations
+    (one trigger distance apart) are added beyond each unblocked end of a run, so that the
+    area's edges are seen by ``end_stations + 1`` frames along the line. Runs longer than
+    ``max_run_stations`` are split into consecutive runs (the trigger re-armed at a station).
     """
     v_min, v_max = area_uv.bounds[1], area_uv.bounds[3]
     across = rect.across_m
@@ -122,13 +139,27 @@ def layout_pass(
         piece = area_uv.intersection(box(u_lo, band_lo, u_hi, band_hi))
         intervals = _u_intervals(piece)
         segments.extend(
-            _segments_for_line(i, v_line, intervals, prepared_blocked, rect, trigger_distance_m, (u_lo, u_hi))
+            _segments_for_line(
+                i,
+                v_line,
+                intervals,
+                prepared_blocked,
+                rect,
+                trigger_distance_m,
+                (u_lo, u_hi),
+                end_stations=end_stations,
+            )  # fmt: skip
         )
 
     segments = _drop_slivers(segments, area_uv, rect)
     segments, uncovered = _fill_residual(
-        segments, area_uv, prepared_blocked, rect, trigger_distance_m, (u_lo, u_hi)
+        segments, area_uv, prepared_blocked, rect, trigger_distance_m, (u_lo, u_hi), end_stations
     )
+    segments = _fill_stereo(
+        segments, area_uv, prepared_blocked, rect, trigger_distance_m, (u_lo, u_hi), end_stations
+    )
+    if max_run_stations is not None:
+        segments = [part for s in segments for part in split_run(s, max_run_stations)]
     segments.sort(key=lambda s: (s.v_m, s.u_first_m))
     rows: dict[float, int] = {}
     for s in segments:
@@ -141,10 +172,35 @@ def layout_pass(
             spacing_m=s.spacing_m,
             count=s.count,
             fill=s.fill,
+            join_lo=s.join_lo,
+            join_hi=s.join_hi,
         )
         for s in segments
     )
     return PassLayout(segments=ordered, uncovered_m2=uncovered, line_count=len(rows))
+
+
+def split_run(seg: Segment, max_stations: int) -> list[Segment]:
+    """``seg`` cut into consecutive runs of at most ``max_stations`` stations, same spacing."""
+    if seg.count <= max_stations:
+        return [seg]
+    n_runs = math.ceil(seg.count / max_stations)
+    base, extra = divmod(seg.count, n_runs)
+    out = []
+    first = 0
+    for k in range(n_runs):
+        count = base + (1 if k < extra else 0)
+        out.append(
+            dataclasses.replace(
+                seg,
+                u_first_m=seg.u_first_m + first * seg.spacing_m,
+                count=count,
+                join_lo=seg.join_lo if k == 0 else True,
+                join_hi=seg.join_hi if k == n_runs - 1 else True,
+            )
+        )
+        first += count
+    return out
 
 
 def _u_intervals(geom: shapely.Geometry) -> list[tuple[float, float]]:
@@ -214,8 +270,10 @@ def _segments_for_line(
     trigger_distance_m: float,
     u_range: tuple[float, float],
     fill: bool = False,
+    end_stations: int = 0,
 ) -> list[Segment]:
-    """Camera-on segments of one line covering ``coverage_intervals`` (u-extents of area)."""
+    """Camera-on segments of one line covering ``coverage_intervals`` (u-extents of area),
+    with ``end_stations`` extra stations beyond each end where no blocked zone prevents it."""
     if not coverage_intervals:
         return []
     # Merge small gaps (notches) that cross no blocked zone.
@@ -236,6 +294,12 @@ def _segments_for_line(
         p1 = hi - rect.u_max_m
         if p1 < p0:
             p0 = p1 = (p0 + p1) / 2.0
+        # Stereo at the ends: the frame whose back edge reaches ``lo`` is the only one that sees
+        # it; each extra station one trigger distance further out adds one more view of the edge
+        # (a frame is longer than the trigger distance), clipped below by the blocked zones.
+        useful = min(end_stations, math.floor(rect.along_m / trigger_distance_m + 1e-9))
+        p0 -= useful * trigger_distance_m
+        p1 += useful * trigger_distance_m
         for s_lo, s_hi, _, _ in _subtract((p0, p1), holes):
             # The camera-off point lies half a spacing past the last station, whichever way the
             # segment is flown: keep it out of the nearest blocked zone on either side.
@@ -244,12 +308,19 @@ def _segments_for_line(
             prev_hole = max((h_hi for _, h_hi in holes if h_hi <= s_lo + _EPS), default=-math.inf)
             t_lo = max(s_lo, prev_hole + margin)
             t_hi = min(s_hi, next_hole - margin)
-            s_lo, s_hi = (t_lo, t_hi) if t_hi >= t_lo else ((s_lo + s_hi) / 2.0,) * 2
+            single = trigger_distance_m  # a one-station run: camera off half of this past it
+            if t_hi < t_lo:
+                # No room for a run with its camera-off margins: one station in the middle, its
+                # camera-off point as far as the room allows (too little room: none).
+                mid = (s_lo + s_hi) / 2.0
+                single = min(trigger_distance_m, 2.0 * min(mid - prev_hole, next_hole - mid) * 0.9)
+                if single < 0.25 * trigger_distance_m:
+                    continue
+                t_lo = t_hi = mid
+            s_lo, s_hi = t_lo, t_hi
             length = s_hi - s_lo
-            if length < -_EPS:
-                continue
             count = max(1, math.ceil(length / trigger_distance_m - 1e-9) + 1) if length > _EPS else 1
-            spacing = length / (count - 1) if count > 1 else trigger_distance_m
+            spacing = length / (count - 1) if count > 1 else single
             segments.append(
                 Segment(row=row, v_m=v_line, u_first_m=s_lo, spacing_m=spacing, count=count, fill=fill)
             )
@@ -285,6 +356,7 @@ def _fill_residual(
     rect: FrameRectangle,
     trigger_distance_m: float,
     u_range: tuple[float, float],
+    end_stations: int = 0,
     rounds: int = 3,
 ) -> tuple[list[Segment], float]:
     """Add fill segments for area left uncovered; return them and the area still uncovered."""
@@ -296,7 +368,7 @@ def _fill_residual(
         added = False
         for piece in pieces:
             for sub in _slice_by_height(piece, rect.across_m * 0.95):
-                new = _fill_piece(sub, blocked, rect, trigger_distance_m, u_range)
+                new = _fill_piece(sub, blocked, rect, trigger_distance_m, u_range, end_stations)
                 if new:
                     segments.extend(new)
                     added = True
@@ -307,12 +379,54 @@ def _fill_residual(
     return segments, leftover
 
 
+def _fill_stereo(
+    segments: list[Segment],
+    area: shapely.Geometry,
+    blocked: shapely.Geometry | None,
+    rect: FrameRectangle,
+    trigger_distance_m: float,
+    u_range: tuple[float, float],
+    end_stations: int,
+    rounds: int = 2,
+) -> list[Segment]:
+    """Fill segments over the parts of the area seen by fewer than two frames (beside exclusions,
+    in the gaps a line leaves around them, in thin parts): each such part, found on a grid of
+    the area, gets a run of its own (with its end stations, so at least two views)."""
+    from .coverage import boundary_points, grid_points, view_counts
+
+    cell = min(trigger_distance_m, rect.across_m) / 4.0
+    points, cell = grid_points(area, cell)
+    points = np.vstack([points, boundary_points(area, min(cell, 1.0))])
+    if len(points) == 0:
+        return segments
+    for _ in range(rounds):
+        counts = view_counts(points, segments, rect)
+        weak = points[counts < 2]
+        if len(weak) == 0:
+            break
+        boxes = shapely.box(weak[:, 0] - cell, weak[:, 1] - cell, weak[:, 0] + cell, weak[:, 1] + cell)
+        pieces = _polygons(shapely.union_all(boxes).intersection(area))
+        added = False
+        for piece in pieces:
+            if piece.area <= _RESIDUAL_NOISE_M2:
+                continue
+            for sub in _slice_by_height(piece, rect.across_m * 0.95):
+                new = _fill_piece(sub, blocked, rect, trigger_distance_m, u_range, end_stations)
+                if new:
+                    segments.extend(new)
+                    added = True
+        if not added:
+            break
+    return segments
+
+
 def _fill_piece(
     piece: Polygon,
     blocked: shapely.Geometry | None,
     rect: FrameRectangle,
     trigger_distance_m: float,
     u_range: tuple[float, float],
+    end_stations: int = 0,
 ) -> list[Segment]:
     """Segments at a v whose rectangles span the piece's v-extent, avoiding blocked zones."""
     u0, pv0, u1, pv1 = piece.bounds
@@ -324,8 +438,9 @@ def _fill_piece(
     best_cover = -1.0
     for v in np.linspace(lo_v, hi_v, 7):
         candidate = _segments_for_line(
-            -1, float(v), [(u0, u1)], blocked, rect, trigger_distance_m, u_range, fill=True
-        )
+            -1, float(v), [(u0, u1)], blocked, rect, trigger_distance_m, u_range, fill=True,
+            end_stations=end_stations,
+        )  # fmt: skip
         cover = sum(s.rectangle(rect).intersection(piece).area for s in candidate)
         if cover > best_cover + _EPS:
             best, best_cover = candidate, cover

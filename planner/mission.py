@@ -114,6 +114,12 @@ class HomePosition:
     alt_amsl_m: float = 0.0
 
 
+#: GIMBAL_MANAGER_FLAGS of MAVLink common.xml (the same values as GIMBAL_DEVICE_FLAGS).
+GIMBAL_MANAGER_FLAGS_ROLL_LOCK = 4
+GIMBAL_MANAGER_FLAGS_PITCH_LOCK = 8
+GIMBAL_MANAGER_FLAGS_YAW_LOCK = 16
+
+
 @dataclass(frozen=True, kw_only=True)
 class MissionItem:
     """One mission item, as in MISSION_ITEM_INT but in degrees and metres.
@@ -239,11 +245,22 @@ class MissionItem:
         )
 
     @classmethod
-    def gimbal_manager_pitch_yaw(cls, pitch_deg: float, yaw_deg: float) -> MissionItem:
+    def gimbal_manager_pitch_yaw(
+        cls, pitch_deg: float, yaw_deg: float, *, yaw_earth_frame: bool = False
+    ) -> MissionItem:
         """Point the gimbal with the gimbal-manager protocol (PX4, newer ArduPilot).
 
-        Yaw is relative to the vehicle (flags 0: follow the vehicle's heading).
+        param5 holds GIMBAL_MANAGER_FLAGS (MAVLink common.xml). PX4's gimbal module
+        (src/modules/gimbal/input_mavlink.cpp, _set_control_data_from_set_attitude) takes each
+        axis in the earth frame when its LOCK flag is set and relative to the airframe when it is
+        not: roll and pitch are always locked here, so the camera stays level (nadir stays nadir
+        however the drone tilts); yaw is locked (``yaw_earth_frame``, ``yaw_deg`` then a bearing
+        from north) for obliques, which must look toward a fixed bearing even when the vehicle
+        crabs, and follows the vehicle otherwise (``yaw_deg`` relative to its heading).
         """
+        flags = GIMBAL_MANAGER_FLAGS_ROLL_LOCK | GIMBAL_MANAGER_FLAGS_PITCH_LOCK
+        if yaw_earth_frame:
+            flags |= GIMBAL_MANAGER_FLAGS_YAW_LOCK
         return cls(
             command=MavCmd.DO_GIMBAL_MANAGER_PITCHYAW,
             frame=MavFrame.MISSION,
@@ -251,7 +268,7 @@ class MissionItem:
             param2=yaw_deg,
             param3=None,  # pitch rate: leave unchanged
             param4=None,  # yaw rate: leave unchanged
-            param5=0.0,  # flags
+            param5=float(flags),
             param6=0.0,
             param7=0.0,  # gimbal device id 0: primary gimbal
         )

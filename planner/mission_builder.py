@@ -5,8 +5,10 @@ REFERENCES.md section 2): [transit waypoints around no-fly zones], [gimbal comma
 changes], WP(lead-in), WP(camera on) + DO_SET_CAM_TRIGG_DIST(d, 0, 1), WP(camera off) +
 DO_SET_CAM_TRIGG_DIST(0, 0, 0), WP(lead-out). The trigger fires once on reaching the camera-on
 point (param 3 = 1), then every d metres; the camera-off point lies half a spacing past the last
-station, so the photo count is exactly the station count. A segment of one station gets
-DO_SET_CAM_TRIGG_DIST(0, 0, 1): one photo, no more. Hover triggering: WP(station, hold) +
+station, so the photo count is exactly the station count. d is the run's spacing in the
+autopilot's own measure, less half a loop step (planner.trigger). Runs of one line that follow
+each other (a long line cut by planner.trigger's run limit) have no lead-in or lead-out between
+them. Hover triggering: WP(station, hold) +
 IMAGE_START_CAPTURE(0, 0, 1) at every station.
 
 Altitudes are relative to home; over flat ground at the home's elevation they equal the height
@@ -15,6 +17,7 @@ above ground.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 
@@ -22,6 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 from shapely.geometry import Polygon
 
+from . import trigger as trig
 from .exposure import FrameRectangle, from_pass_frame, up_bearing_deg
 from .footprint import footprint_corners
 from .geo import LocalFrame
@@ -54,6 +58,8 @@ class PassPlan:
     near_gsd_cm: float
     far_gsd_cm: float
     centre_gsd_cm: float
+    #: Height of this pass when it differs from the mission's (multi-scale blocks), metres.
+    alt_agl_m: float | None = None
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -81,6 +87,7 @@ class _Columns:
     up: list[NDArray[np.float64]] = field(default_factory=list)
     tilt: list[NDArray[np.float64]] = field(default_factory=list)
     gsd: list[NDArray[np.float64]] = field(default_factory=list)
+    alt: list[NDArray[np.float64]] = field(default_factory=list)
 
 
 def build_mission(
@@ -117,13 +124,23 @@ def build_mission(
     items.append(MissionItem.change_speed(speed_m_s))
     gimbal_state: tuple[float, float] | None = None
 
-    def gimbal(pitch_deg: float, yaw_deg: float) -> None:
+    def gimbal(pitch_deg: float, yaw_deg: float, look_true_deg: float | None = None) -> None:
+        """Pitch, yaw relative to the heading; PX4 obliques take ``look_true_deg`` (true bearing)
+        as an earth-frame yaw instead."""
         nonlocal gimbal_state
-        if gimbal_state == (pitch_deg, yaw_deg):
+        px4_yaw = None if look_true_deg is None else _wrap180(look_true_deg)
+        state = (
+            pitch_deg,
+            px4_yaw if vehicle.autopilot is Autopilot.PX4 and px4_yaw is not None else yaw_deg,
+        )
+        if gimbal_state == state:
             return
-        gimbal_state = (pitch_deg, yaw_deg)
+        gimbal_state = state
         if vehicle.autopilot is Autopilot.PX4:
-            items.append(MissionItem.gimbal_manager_pitch_yaw(pitch_deg, yaw_deg))
+            if px4_yaw is not None:
+                items.append(MissionItem.gimbal_manager_pitch_yaw(pitch_deg, px4_yaw, yaw_earth_frame=True))
+            else:
+                items.append(MissionItem.gimbal_manager_pitch_yaw(pitch_deg, yaw_deg))
         else:
             items.append(MissionItem.gimbal_pitch_yaw(pitch_deg, yaw_deg))
 
@@ -138,6 +155,7 @@ def build_mission(
     position = home_xy
     columns = _Columns()
     lines: dict[int, tuple[FlightLine, ...]] = {}
+    alt_sequence: list[float] = []  # the height of each pass flown, for the climbs in the time
 
     def waypoint(p: tuple[float, float], hold_s: float = 0.0, transit: bool = True) -> None:
         nonlocal position
@@ -156,6 +174,8 @@ def build_mission(
         if not segs:
             lines[pp.index] = ()
             continue
+        alt = pp.alt_agl_m if pp.alt_agl_m is not None else alt_agl_m
+        alt_sequence.append(alt)
         rows: dict[int, list[int]] = {}
         for k, s in enumerate(segs):
             rows.setdefault(s.row, []).append(k)
@@ -169,18 +189,18 @@ def build_mission(
         order = boustrophedon(row_list, reverse_rows, first_dir)
         pass_lines: list[FlightLine] = []
         for k, direction in order:
-            seg = Segment(
-                row=segs[k].row, v_m=segs[k].v_m, u_first_m=segs[k].u_first_m,
-                spacing_m=segs[k].spacing_m, count=segs[k].count, fill=segs[k].fill,
-                direction=direction,
-            )  # fmt: skip
+            seg = dataclasses.replace(segs[k], direction=direction)
             pts = _segment_points(seg, direction, pp, survey.turnaround_m, router)
             heading = (pp.direction_deg + (0.0 if direction > 0 else 180.0)) % 360.0
             # transit to the entry, around no-fly zones
             for p in router.path(position, pts["entry"])[1:-1]:
                 waypoint(p)
             if pp.look_heading_deg is not None:
-                gimbal(-(90.0 - pp.tilt_deg), _wrap180(pp.look_heading_deg - heading))
+                gimbal(
+                    -(90.0 - pp.tilt_deg),
+                    _wrap180(pp.look_heading_deg - heading),
+                    (pp.look_heading_deg - true_north_grid_deg) % 360.0,
+                )
             else:
                 gimbal(-90.0, 0.0)
             waypoint(pts["entry"])
@@ -200,12 +220,14 @@ def build_mission(
             else:
                 waypoint(pts["start"], transit=True)
                 station_s.append(path_s[-1] + np.abs(u_stations - u_stations[0]))
-                if seg.count > 1:
-                    items.append(MissionItem.cam_trigger_distance(seg.spacing_m, trigger_now=True))
-                    waypoint(pts["stop"], transit=False)
-                    items.append(MissionItem.cam_trigger_distance(0.0, trigger_now=False))
-                else:
-                    items.append(MissionItem.cam_trigger_distance(0.0, trigger_now=True))
+                (lat0, lon0), (lat1, lon1) = to_lonlat(pts["start"]), to_lonlat(pts["stop"])
+                ratio = trig.distance_ratio(
+                    (lat0, lat1), (lon0, lon1), math.dist(pts["start"], pts["stop"]), vehicle.autopilot
+                )
+                commanded = trig.commanded_distance_m(seg.spacing_m, ratio, speed_m_s)
+                items.append(MissionItem.cam_trigger_distance(commanded, trigger_now=True))
+                waypoint(pts["stop"], transit=False)
+                items.append(MissionItem.cam_trigger_distance(0.0, trigger_now=False))
             waypoint(pts["exit"])
             if survey.transit_speed_m_s is not None:
                 items.append(MissionItem.change_speed(survey.transit_speed_m_s))
@@ -235,6 +257,7 @@ def build_mission(
                 columns.up.append(np.full(n, up_bearing_deg(heading, spec.orientation)))
             columns.tilt.append(np.full(n, pp.tilt_deg))
             columns.gsd.append(np.full(n, pp.centre_gsd_cm))
+            columns.alt.append(np.full(n, alt))
         lines[pp.index] = tuple(pass_lines)
 
     # home, around no-fly zones, then RTL
@@ -254,7 +277,7 @@ def build_mission(
     flight_time = _flight_time_s(
         path_xy, transit_flags, speed_m_s, survey.transit_speed_m_s, alt_agl_m,
         vehicle.takeoff_alt_m, vehicle.climb_rate_m_s, holds_s, vehicle.type,
-        len(stations) if hover else 0,
+        len(stations) if hover else 0, alt_sequence_m=alt_sequence,
     )  # fmt: skip
     mission = Mission(
         items=tuple(items),
@@ -283,18 +306,18 @@ def _segment_points(
     seg: Segment, direction: int, pp: PassPlan, turnaround_m: float, router: Router
 ) -> dict[str, tuple[float, float]]:
     """Lead-in, camera-on, camera-off and lead-out points of a segment flown in ``direction``."""
-    flown = Segment(
-        row=seg.row, v_m=seg.v_m, u_first_m=seg.u_first_m, spacing_m=seg.spacing_m,
-        count=seg.count, fill=seg.fill, direction=direction,
-    )  # fmt: skip
+    flown = dataclasses.replace(seg, direction=direction)
     start_u, stop_u = flown.camera_on_u()
+    # A run that continues another of the same line has no lead-in (lead-out) on that side.
+    lead_in = 0.0 if (seg.join_lo if direction > 0 else seg.join_hi) else turnaround_m
+    lead_out = 0.0 if (seg.join_hi if direction > 0 else seg.join_lo) else turnaround_m
 
     def xy(u: float) -> tuple[float, float]:
         x, y = from_pass_frame(np.array([u]), np.array([seg.v_m]), pp.direction_deg)
         return float(x[0]), float(y[0])
 
     start, stop = xy(start_u), xy(stop_u)
-    entry, exit_ = xy(start_u - direction * turnaround_m), xy(stop_u + direction * turnaround_m)
+    entry, exit_ = xy(start_u - direction * lead_in), xy(stop_u + direction * lead_out)
     if not router.is_clear(entry, start):
         entry = start
     if not router.is_clear(stop, exit_):
@@ -309,7 +332,7 @@ def _stations(spec: MissionSpec, frame: LocalFrame, alt_agl_m: float, c: _Column
     x, y = cat(c.x, float), cat(c.y, float)
     up, tilt = cat(c.up, float), cat(c.tilt, float)
     n = x.shape[0]
-    alt = np.full(n, alt_agl_m)
+    alt = cat(c.alt, float) if c.alt else np.full(n, alt_agl_m)
     if n:
         corners = footprint_corners(spec.camera, x, y, alt, up, tilt)
         lon, lat = frame.to_lonlat(x, y)
@@ -348,6 +371,7 @@ def _flight_time_s(
     holds_s: float,
     vehicle_type: VehicleType,
     stops: int,
+    alt_sequence_m: list[float] | None = None,
 ) -> float:
     """Estimated flight time: legs at their speed, climbs and the final descent at the climb
     rate, holds, and for a multirotor a stop-and-go (v / a) at every sharp turn and stop."""
@@ -355,7 +379,10 @@ def _flight_time_s(
     fast = transit_speed_m_s or speed_m_s
     speeds = np.array([fast if t else speed_m_s for t in transit_flags[: len(legs)]])
     time = float(np.sum(legs / speeds)) if len(legs) else 0.0
-    time += (takeoff_alt_m + abs(alt_agl_m - takeoff_alt_m) + alt_agl_m) / climb_rate_m_s
+    heights = alt_sequence_m or [alt_agl_m]  # passes at other heights: a climb or descent between
+    vertical_m = takeoff_alt_m + abs(heights[0] - takeoff_alt_m) + heights[-1]
+    vertical_m += float(np.sum(np.abs(np.diff(heights)))) if len(heights) > 1 else 0.0
+    time += vertical_m / climb_rate_m_s
     time += holds_s
     if vehicle_type is not VehicleType.FIXED_WING and len(path_xy) > 2:
         d = np.diff(path_xy, axis=0)

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from enum import StrEnum
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
@@ -16,6 +17,11 @@ from shapely.geometry import MultiPolygon, Polygon
 from .camera import Camera, Orientation
 from .geo import LocalFrame
 from .mission import HomePosition, Mission
+
+if TYPE_CHECKING:
+    from .mission_builder import PassPlan
+    from .spec import MissionSpec
+    from .terrain import Dem
 
 
 class PassKind(StrEnum):
@@ -132,6 +138,10 @@ class Summary:
     flight_time_s: float
     item_count: int
     crs: str
+    max_item_count: int = 0  # the autopilot's mission capacity assumed (planner.summary)
+    stereo_seen_2_pct: float = 0.0  # share of the area seen by >= 2 nadir frames (planner.coverage)
+    stereo_seen_3_pct: float = 0.0  # share seen by >= 3 nadir frames
+    stereo_seen_3_target_pct: float = 0.0  # the share >= 3 the plan promises (0: overlap too low)
     warnings: tuple[str, ...] = ()
     terrain: dict[str, object] | None = None  # planner.terrain_follow.TerrainSummary, with a DEM
 
@@ -164,8 +174,24 @@ class SurveyPlan:
     mission: Mission
     summary: Summary
     warnings: tuple[str, ...] = field(default=())
+    #: What the mission was built from, so that parts of it can be built again as sorties or a
+    #: resume plan (planner.sorties); None for plans not made by planner.survey.
+    layout: PlanLayout | None = field(default=None, compare=False, repr=False)
 
     @property
     def entry_xy_m(self) -> tuple[float, float]:
         """Where the first survey line starts (its entry, turnaround included)."""
         return self.passes[0].lines[0].entry_xy_m
+
+
+@dataclass(frozen=True, kw_only=True)
+class PlanLayout:
+    """The inputs of planner.mission_builder.build_mission (and of terrain following) for a plan."""
+
+    spec: MissionSpec
+    alt_agl_m: float
+    speed_m_s: float
+    pass_plans: tuple[PassPlan, ...]
+    true_north_grid_deg: float
+    dem: Dem | None = None
+    footprint_scale: float = 1.0

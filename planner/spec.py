@@ -34,6 +34,17 @@ class ObliqueSpec:
 
 
 @dataclass(frozen=True, kw_only=True)
+class ScaleSpec:
+    """A further nadir pass over the same area at another height (multi-scale blocks, against
+    the doming effect: James and Robson 2014); ``None`` overlaps take the survey's."""
+
+    gsd_cm: float | None
+    altitude_agl_m: float | None
+    front_overlap_pct: float | None
+    side_overlap_pct: float | None
+
+
+@dataclass(frozen=True, kw_only=True)
 class SurveySpec:
     gsd_cm: float | None
     altitude_agl_m: float | None
@@ -52,6 +63,11 @@ class SurveySpec:
     exclusion_clearance_m: float
     oblique_front_overlap_pct: float | None
     oblique_side_overlap_pct: float | None
+    #: Further passes at other heights ([[survey.scale]]), flown after the main passes.
+    scales: tuple[ScaleSpec, ...] = ()
+    #: "one_mission": the scales follow in the same mission; "sorties": each pass height is
+    #: flown (and split by endurance) as its own set of sorties.
+    scale_flight: str = "one_mission"
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -64,6 +80,21 @@ class VehicleSpec:
     max_alt_agl_m: float
     autopilot: Autopilot
     climb_rate_m_s: float
+    #: The longest flight one battery allows (a longer plan is flagged), minutes.
+    max_flight_time_min: float = 30.0
+    #: Endurance of one battery, seconds (given, or battery_capacity_mah / consumption_ma);
+    #: None: the plan is not split into sorties (planner.sorties).
+    endurance_s: float | None = None
+    #: Reserve kept in the battery at landing: the larger of the share and the seconds.
+    reserve_pct: float = 20.0
+    reserve_s: float = 0.0
+
+    @property
+    def usable_flight_s(self) -> float | None:
+        """The longest sortie allowed: endurance less the reserve (None without endurance)."""
+        if self.endurance_s is None:
+            return None
+        return self.endurance_s - max(self.endurance_s * self.reserve_pct / 100.0, self.reserve_s)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -76,6 +107,8 @@ class TerrainSpec:
     sample_spacing_m: float = 10.0
     max_climb_rate_m_s: float = 3.0
     max_descent_rate_m_s: float = 2.0
+    #: Fly at constant altitude even where the terrain opens gaps between the frames.
+    accept_overlap_loss: bool = False
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -94,17 +127,20 @@ class MissionSpec:
 _TOP_KEYS = {"name", "area", "exclude", "camera", "survey", "vehicle", "terrain"}
 _TERRAIN_KEYS = {
     "dem", "follow", "tolerance_m", "sample_spacing_m", "max_climb_rate_m_s", "max_descent_rate_m_s",
+    "accept_overlap_loss",
 }  # fmt: skip
 _SURVEY_KEYS = {
     "gsd_cm", "altitude_agl_m", "front_overlap_pct", "side_overlap_pct", "speed_m_s",
     "direction_deg", "crosshatch", "turnaround_m", "trigger", "oblique", "adjust_speed",
     "max_blur_px", "transit_speed_m_s", "hover_hold_s", "exclusion_clearance_m",
-    "oblique_front_overlap_pct", "oblique_side_overlap_pct",
+    "oblique_front_overlap_pct", "oblique_side_overlap_pct", "scale", "scale_flight",
 }  # fmt: skip
+_SCALE_KEYS = {"gsd_cm", "altitude_agl_m", "front_overlap_pct", "side_overlap_pct"}
 _OBLIQUE_KEYS = {"tilt_deg", "headings_deg"}
 _VEHICLE_KEYS = {
     "type", "home", "home_alt_amsl_m", "takeoff_alt_m", "max_alt_agl_m", "autopilot",
-    "climb_rate_m_s",
+    "climb_rate_m_s", "max_flight_time_min", "endurance_s", "reserve_pct", "reserve_s",
+    "battery_capacity_mah", "consumption_ma",
 }  # fmt: skip
 
 
@@ -184,6 +220,7 @@ def _parse_terrain(value: Any, base: Path, where: str) -> TerrainSpec:
         sample_spacing_m=_number(value, "sample_spacing_m", section, 1.0, 200.0, default=10.0),
         max_climb_rate_m_s=_number(value, "max_climb_rate_m_s", section, 0.1, 20.0, default=3.0),
         max_descent_rate_m_s=_number(value, "max_descent_rate_m_s", section, 0.1, 20.0, default=2.0),
+        accept_overlap_loss=_get(value, "accept_overlap_loss", bool, section, default=False),
     )
 
 
@@ -235,7 +272,37 @@ def _parse_survey(value: Any, where: str) -> SurveySpec:
         exclusion_clearance_m=_number(value, "exclusion_clearance_m", section, 0.0, 200.0, default=2.0),
         oblique_front_overlap_pct=_opt_number(value, "oblique_front_overlap_pct", section, 0.0, 95.0),
         oblique_side_overlap_pct=_opt_number(value, "oblique_side_overlap_pct", section, 0.0, 95.0),
+        scales=_parse_scales(value.get("scale", []), section),
+        scale_flight=_parse_scale_flight(value.get("scale_flight", "one_mission"), section),
     )
+
+
+def _parse_scales(value: Any, section: str) -> tuple[ScaleSpec, ...]:
+    if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
+        raise SpecError(f"{section}: scale must be an array of tables ([[survey.scale]])")
+    out = []
+    for i, table in enumerate(value):
+        where = f"{section} scale {i + 1}"
+        _check_keys(table, _SCALE_KEYS, where, "[[survey.scale]]")
+        gsd = _opt_number(table, "gsd_cm", where, 0.05, 100.0)
+        alt = _opt_number(table, "altitude_agl_m", where, 2.0, 5000.0)
+        if (gsd is None) == (alt is None):
+            raise SpecError(f"{where}: give exactly one of gsd_cm and altitude_agl_m")
+        out.append(
+            ScaleSpec(
+                gsd_cm=gsd,
+                altitude_agl_m=alt,
+                front_overlap_pct=_opt_number(table, "front_overlap_pct", where, 0.0, 95.0),
+                side_overlap_pct=_opt_number(table, "side_overlap_pct", where, 0.0, 95.0),
+            )
+        )
+    return tuple(out)
+
+
+def _parse_scale_flight(value: Any, section: str) -> str:
+    if value not in ("one_mission", "sorties"):
+        raise SpecError(f'{section}: scale_flight = {value!r}; use "one_mission" or "sorties"')
+    return str(value)
 
 
 def _parse_oblique(value: Any, where: str) -> ObliqueSpec:
@@ -297,7 +364,42 @@ def _parse_vehicle(value: Any, where: str) -> VehicleSpec:
         max_alt_agl_m=max_alt,
         autopilot=autopilot,
         climb_rate_m_s=_number(value, "climb_rate_m_s", section, 0.2, 20.0, default=2.5),
+        max_flight_time_min=_number(
+            value,
+            "max_flight_time_min",
+            section,
+            1.0,
+            1440.0,
+            default=30.0 if vehicle_type is VehicleType.MULTIROTOR else 90.0,
+        ),  # fmt: skip
+        endurance_s=_endurance_s(value, section),
+        reserve_pct=_number(value, "reserve_pct", section, 0.0, 90.0, default=20.0),
+        reserve_s=_number(value, "reserve_s", section, 0.0, 86400.0, default=0.0),
     )
+
+
+def _endurance_s(value: Mapping[str, Any], section: str) -> float | None:
+    """endurance_s, or a battery's capacity over the average current the vehicle draws."""
+    endurance = _opt_number(value, "endurance_s", section, 30.0, 86400.0)
+    capacity = _opt_number(value, "battery_capacity_mah", section, 10.0, 1.0e6)
+    consumption = _opt_number(value, "consumption_ma", section, 10.0, 1.0e6)
+    if endurance is not None and (capacity is not None or consumption is not None):
+        raise SpecError(
+            f"{section}: give either endurance_s or battery_capacity_mah with consumption_ma, not both"
+        )
+    if (capacity is None) != (consumption is None):
+        raise SpecError(
+            f"{section}: battery_capacity_mah needs consumption_ma (the average current in flight, mA) "
+            f"and the other way round"
+        )
+    if capacity is not None and consumption is not None:
+        endurance = capacity / consumption * 3600.0
+        if endurance < 30.0:
+            raise SpecError(
+                f"{section}: battery_capacity_mah / consumption_ma gives {endurance:.0f} s of flight, "
+                f"less than 30 s; check the figures (capacity in mAh, current in mA)"
+            )
+    return endurance
 
 
 def _check_keys(data: Mapping[str, Any], valid: set[str], where: str, table: str) -> None:

@@ -2,16 +2,30 @@
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING
 
 from . import exposure as ex
 from .camera import Orientation
 from .geo import LocalFrame
+from .mission import Autopilot
 from .plan import Summary
 from .spec import MissionSpec
 
 if TYPE_CHECKING:
+    from .coverage import ViewShares
     from .mission_builder import BuiltMission, PassPlan
+
+#: Mission capacity assumed, items including home. ArduPilot stores 15 bytes per item in the
+#: board's mission storage, so the figure depends on the board; 650 is what ArduPilot 4.5.4 SITL
+#: accepts ("Only 650 items are supported"; sfap's simulator holds 724), typical of 16 KB storage
+#: boards; boards that keep missions on the SD card (BRD_SD_MISSION) hold thousands. PX4 keeps
+#: up to 2,000 items in its dataman (NUM_MISSIONS_SUPPORTED).
+MAX_MISSION_ITEMS = {Autopilot.ARDUPILOT: 650, Autopilot.PX4: 2000}
+#: The share of the area seen by three or more nadir frames a plan promises when its forward
+#: overlap gives three views along a line (>= 2/3); the edges get them from the extra end
+#: stations (planner.lines.END_STATIONS), so only the sampling and exclusions take from it.
+STEREO_3_TARGET_PCT = 99.0
 
 
 def summarize(
@@ -26,6 +40,7 @@ def summarize(
     built: BuiltMission,
     warnings: tuple[str, ...],
     true_north_grid_deg: float,
+    views: ViewShares,
     terrain: dict[str, object] | None = None,
 ) -> Summary:
     camera = spec.camera
@@ -68,7 +83,7 @@ def summarize(
         max_speed_blur_m_s=max_blur,
         base_height_ratio=ex.base_height_ratio(air_base, alt_agl_m),
         intersection_angle_deg=ex.intersection_angle_deg(air_base, alt_agl_m),
-        depth_precision_m=ex.depth_precision_m(camera, air_base, alt_agl_m),
+        depth_precision_m=ex.depth_precision_m(camera, air_base, alt_agl_m, spec.orientation),
         direction_deg=(nadir.direction_deg - true_north_grid_deg) % 180.0,
         pass_count=len(passes),
         line_count=sum(len({s.row for s in p.segments}) for p in passes),
@@ -76,7 +91,40 @@ def summarize(
         flight_distance_m=built.flight_distance_m,
         flight_time_s=built.flight_time_s,
         item_count=len(built.mission.items),
+        max_item_count=MAX_MISSION_ITEMS[spec.vehicle.autopilot],
+        stereo_seen_2_pct=views.seen_2_pct,
+        stereo_seen_3_pct=views.seen_3_pct,
+        stereo_seen_3_target_pct=stereo_3_target_pct(nadir.trigger_distance_m, nadir.rect.along_m),
         crs=f"EPSG:{frame.epsg}" if frame.epsg else frame.crs.to_string(),
         warnings=warnings,
         terrain=terrain,
     )
+
+
+def stereo_3_target_pct(air_base_m: float, frame_along_m: float) -> float:
+    """The promised share seen by >= 3 frames: STEREO_3_TARGET_PCT when three frames of a line
+    overlap (air base at most a third of the frame), else none."""
+    return STEREO_3_TARGET_PCT if 3.0 * air_base_m <= frame_along_m + 1e-9 else 0.0
+
+
+def limit_warnings(
+    *, autopilot: Autopilot, item_count: int, flight_time_s: float, max_flight_time_min: float
+) -> list[str]:
+    """What no vehicle of this kind can fly as planned: too many items, too long a flight."""
+    out = []
+    capacity = MAX_MISSION_ITEMS[autopilot]
+    if item_count + 1 > capacity:  # + 1: home is item 0 on ArduPilot and counted by PX4 tools
+        out.append(
+            f"the mission has {item_count + 1} items with home, more than {autopilot.value} holds "
+            f"({capacity}, see planner.summary.MAX_MISSION_ITEMS); split the area into smaller "
+            f"blocks, or fly it from a vehicle that stores missions on its SD card"
+        )
+    minutes = flight_time_s / 60.0
+    if minutes > max_flight_time_min:
+        flights = math.ceil(minutes / max_flight_time_min)
+        out.append(
+            f"the flight takes {minutes:.0f} min ({minutes / 60.0:.1f} h), more than one battery "
+            f"(max_flight_time_min = {max_flight_time_min:g}); plan at least {flights} flights "
+            f"(split the area), or raise max_flight_time_min in [vehicle] if the vehicle can"
+        )
+    return out

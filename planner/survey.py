@@ -24,15 +24,17 @@ import shapely
 from shapely.geometry import MultiPolygon, Polygon
 
 from . import exposure as ex
+from . import trigger as trig
 from .area import build_area, check_area_size, load_polygons
 from .camera import Orientation
-from .errors import PlanningError, SpecError
+from .coverage import ViewShares, view_shares
+from .errors import AreaError, PlanningError, SpecError
 from .footprint import near_far_gsd_cm, tilted_gsd_cm
 from .geo import LocalFrame, geodesic_area_m2
-from .lines import layout_pass
+from .lines import layout_pass, split_run
 from .mission import HomePosition, VehicleType
-from .mission_builder import BuiltMission, PassPlan, build_mission
-from .plan import FlightPass, PassKind, SurveyPlan
+from .mission_builder import PassPlan, build_mission
+from .plan import FlightPass, PassKind, PlanLayout, SurveyPlan
 from .spec import MissionSpec, TriggerMode
 from .terrain import Dem
 from .terrain_follow import TerrainSummary, apply_terrain
@@ -49,6 +51,7 @@ class _PassDef:
     look_heading_deg: float | None
     front_overlap_pct: float
     side_overlap_pct: float
+    alt_agl_m: float | None = None  # a multi-scale pass at its own height ([[survey.scale]])
 
 
 def plan_survey(spec: MissionSpec) -> SurveyPlan:
@@ -78,6 +81,13 @@ def plan_polygons(spec: MissionSpec, polygons: list[Polygon], exclusions: list[P
     area_lonlat, zones_lonlat = build_area(polygons, exclusions)
     if area_lonlat.is_empty:
         raise SpecError(f"{spec.area_path}: nothing is left of the area once the exclusions are removed")
+    west, _, east, _ = area_lonlat.bounds
+    if east - west > 180.0:
+        raise AreaError(
+            f"{spec.area_path}: the area spans longitudes {west:.4f} to {east:.4f}: it crosses the "
+            f"antimeridian (180 degrees), which sfap does not plan across; split it at 180 degrees "
+            f"and plan each side as its own mission"
+        )
     centroid = area_lonlat.centroid
     frame = LocalFrame.utm_for(centroid.x, centroid.y)
     area_m2 = geodesic_area_m2(area_lonlat)
@@ -94,7 +104,7 @@ def plan_polygons(spec: MissionSpec, polygons: list[Polygon], exclusions: list[P
         alt_agl_m = camera.height_for_gsd_m(survey.gsd_cm)
     if alt_agl_m > vehicle.max_alt_agl_m + 1e-9:
         needed = f"{alt_agl_m:.1f} m above ground"
-        raise PlanningError(
+        raise SpecError(
             f"{spec.source}: that GSD needs a flying height of {needed}, above the vehicle limit "
             f"max_alt_agl_m = {vehicle.max_alt_agl_m:g} m; ask for a finer gsd_cm (at most "
             f"{camera.gsd_cm(vehicle.max_alt_agl_m):.2f} cm at the limit) or raise the limit"
@@ -131,76 +141,66 @@ def plan_polygons(spec: MissionSpec, polygons: list[Polygon], exclusions: list[P
     else:
         direction = auto_direction_deg(area_xy)
     pass_defs = _pass_definitions(spec, direction, true_north_grid)
+    if survey.scales:
+        from .multiscale import scale_pass_defs
+
+        if spec.terrain is not None:
+            raise SpecError(
+                f"{spec.source}: [[survey.scale]] passes are not planned over a [terrain] DEM yet; "
+                f"plan each height as its own mission, or remove [terrain]"
+            )
+        pass_defs += [_PassDef(**fields) for fields in scale_pass_defs(spec, direction)]
 
     blocked_xy = (
         shapely.union_all([z.buffer(survey.exclusion_clearance_m) for z in zones_xy]) if zones_xy else None
     )
-    speed_m_s = survey.speed_m_s
-    pass_plans: list[PassPlan] = []
-    for index, pdef in enumerate(pass_defs):
-        up = (
-            pdef.look_heading_deg
-            if pdef.look_heading_deg is not None
-            else ex.up_bearing_deg(pdef.direction_deg, spec.orientation)
+    warnings_before_passes = len(warnings)
+    dem = _read_dem(spec, area_lonlat, home) if spec.terrain is not None else None
+    scale = 1.0  # footprint scale at the highest ground under the frames (terrain following)
+    for _attempt in range(_TERRAIN_ATTEMPTS):
+        del warnings[warnings_before_passes:]
+        used_scale = scale  # the footprint scale of the passes built in this attempt
+        pass_plans, views, speed_m_s = _lay_out_passes(
+            spec, pass_defs, area_xy, blocked_xy, alt_agl_m, gsd_cm, scale, warnings
         )
-        rect = ex.frame_rectangle(camera, alt_agl_m, pdef.direction_deg, up, pdef.tilt_deg)
-        trigger_m = ex.air_base_m(rect.along_m, pdef.front_overlap_pct)
-        spacing_m = ex.air_base_m(rect.across_m, pdef.side_overlap_pct)
-        speed_m_s = _check_speed(spec, pdef, trigger_m, alt_agl_m, speed_m_s, warnings)
-        area_uv = _rotate(area_xy, pdef.direction_deg)
-        blocked_uv = _rotate(blocked_xy, pdef.direction_deg) if blocked_xy is not None else None
-        layout = layout_pass(area_uv, blocked_uv, rect, trigger_m, spacing_m)
-        if layout.uncovered_m2 > 0:
-            warnings.append(
-                f"{pdef.name}: {layout.uncovered_m2:.0f} m2 beside exclusion zones cannot be seen "
-                f"without flying over them"
-            )
-        near_gsd, far_gsd = near_far_gsd_cm(camera, alt_agl_m, pdef.tilt_deg)
-        pass_plans.append(
-            PassPlan(
-                index=index,
-                kind=pdef.kind,
-                name=pdef.name,
-                direction_deg=pdef.direction_deg,
-                tilt_deg=pdef.tilt_deg,
-                look_heading_deg=pdef.look_heading_deg,
-                rect=rect,
-                trigger_distance_m=trigger_m,
-                line_spacing_m=spacing_m,
-                segments=layout.segments,
-                near_gsd_cm=near_gsd,
-                far_gsd_cm=far_gsd,
-                centre_gsd_cm=(
-                    gsd_cm if pdef.tilt_deg == 0 else max(tilted_gsd_cm(camera, alt_agl_m, pdef.tilt_deg))
-                ),
-            )
+        # 4-5. route, mission and stations --------------------------------------------------------
+        built = build_mission(
+            spec=spec,
+            frame=frame,
+            home=home,
+            home_xy=home_xy,
+            alt_agl_m=alt_agl_m,
+            speed_m_s=speed_m_s,
+            passes=pass_plans,
+            zones_xy=zones_xy,
+            true_north_grid_deg=true_north_grid,
         )
-
-    # 4-5. route, mission and stations ------------------------------------------------------------
-    built = build_mission(
-        spec=spec,
-        frame=frame,
-        home=home,
-        home_xy=home_xy,
-        alt_agl_m=alt_agl_m,
-        speed_m_s=speed_m_s,
-        passes=pass_plans,
-        zones_xy=zones_xy,
-        true_north_grid_deg=true_north_grid,
-    )
-
-    terrain_summary = None
-    if spec.terrain is not None:
-        built, home, terrain_summary = _over_terrain(
-            spec, built, frame, home, home_xy, area_lonlat, alt_agl_m, speed_m_s, pass_plans
+        terrain_summary = None
+        if spec.terrain is None or dem is None:
+            break
+        built_t, home_t, terrain_summary = apply_terrain(
+            built,
+            dem=dem,
+            terrain=spec.terrain,
+            frame=frame,
+            home=home,
+            home_xy=home_xy,
+            alt_agl_m=alt_agl_m,
+            speed_m_s=speed_m_s,
+            max_alt_agl_m=spec.vehicle.max_alt_agl_m,
+            passes=pass_plans,
+            camera=camera,
+            footprint_scale=scale,
         )
-        front, side = terrain_summary.front_overlap_min_pct, terrain_summary.side_overlap_min_pct
-        if front < survey.front_overlap_pct - 5.0 or side < survey.side_overlap_pct - 5.0:
-            gaps = " (below 0: gaps between frames)" if min(front, side) < 0 else ""
-            warnings.append(
-                f"over the terrain the overlaps fall to {front:.0f} % forward and {side:.0f} % side "
-                f"where the ground is highest{gaps}; set follow = true in [terrain]"
-            )
+        needed = terrain_summary.footprint_scale_min
+        if not spec.terrain.follow or needed >= scale - 1e-3:
+            break
+        # Lines and triggers spaced for the highest ground in each footprint: plan again with
+        # the frame shrunk to its size there (a little below, for the path's own changes).
+        scale = max(0.05, needed - 0.005)
+    if terrain_summary is not None:
+        built, home = built_t, home_t
+        _judge_terrain_overlaps(spec, terrain_summary, warnings)
 
     passes = tuple(
         FlightPass(
@@ -212,7 +212,7 @@ def plan_polygons(spec: MissionSpec, polygons: list[Polygon], exclusions: list[P
             look_heading_deg=(
                 None if p.look_heading_deg is None else (p.look_heading_deg - true_north_grid) % 360.0
             ),
-            alt_agl_m=alt_agl_m,
+            alt_agl_m=p.alt_agl_m if p.alt_agl_m is not None else alt_agl_m,
             line_spacing_m=p.line_spacing_m,
             trigger_distance_m=p.trigger_distance_m,
             lines=built.lines[p.index],
@@ -222,7 +222,28 @@ def plan_polygons(spec: MissionSpec, polygons: list[Polygon], exclusions: list[P
         for p in pass_plans
     )
 
-    from .summary import summarize  # the summary reads the whole plan
+    from .summary import limit_warnings, stereo_3_target_pct, summarize  # reads the whole plan
+
+    nadir_pass = pass_plans[0]
+    if views.seen_2_pct < 100.0 - 1e-9:
+        warnings.append(
+            f"{100.0 - views.seen_2_pct:.2f} % of the area is seen by fewer than two nadir frames "
+            f"(no stereo there){'; raise front_overlap_pct to at least 50' if survey.front_overlap_pct < 50 else ''}"
+        )
+    target3 = stereo_3_target_pct(nadir_pass.trigger_distance_m, nadir_pass.rect.along_m)
+    if views.seen_3_pct < target3:
+        warnings.append(
+            f"only {views.seen_3_pct:.1f} % of the area is seen by three or more nadir frames "
+            f"(target {target3:g} %)"
+        )
+    warnings.extend(
+        limit_warnings(
+            autopilot=vehicle.autopilot,
+            item_count=len(built.mission.items),
+            flight_time_s=built.flight_time_s,
+            max_flight_time_min=vehicle.max_flight_time_min,
+        )
+    )
 
     nadir = pass_plans[0]
     summary = summarize(
@@ -236,6 +257,7 @@ def plan_polygons(spec: MissionSpec, polygons: list[Polygon], exclusions: list[P
         built=built,
         warnings=tuple(warnings),
         true_north_grid_deg=true_north_grid,
+        views=views,
         terrain=terrain_summary.as_dict() if terrain_summary is not None else None,
     )
     for w in warnings:
@@ -258,44 +280,136 @@ def plan_polygons(spec: MissionSpec, polygons: list[Polygon], exclusions: list[P
         mission=built.mission,
         summary=summary,
         warnings=tuple(warnings),
+        layout=PlanLayout(
+            spec=spec,
+            alt_agl_m=alt_agl_m,
+            speed_m_s=speed_m_s,
+            pass_plans=tuple(pass_plans),
+            true_north_grid_deg=true_north_grid,
+            dem=dem,
+            footprint_scale=used_scale,
+        ),
     )
 
 
-def _over_terrain(
+#: Plans over a DEM with following: the first at the flat-ground spacing, then re-spaced for
+#: the highest ground under the frames until the footprints cast on the DEM keep the overlaps.
+_TERRAIN_ATTEMPTS = 4
+
+
+def _lay_out_passes(
     spec: MissionSpec,
-    built: BuiltMission,
-    frame: LocalFrame,
-    home: HomePosition,
-    home_xy: tuple[float, float],
-    area_lonlat: Polygon | MultiPolygon,
+    pass_defs: list[_PassDef],
+    area_xy: Polygon | MultiPolygon,
+    blocked_xy: shapely.Geometry | None,
     alt_agl_m: float,
-    speed_m_s: float,
-    pass_plans: list[PassPlan],
-) -> tuple[BuiltMission, HomePosition, TerrainSummary]:
-    """Terrain-following altitudes (or the spread at constant altitude) from the spec's DEM."""
+    gsd_cm: float,
+    scale: float,
+    warnings: list[str],
+) -> tuple[list[PassPlan], ViewShares, float]:
+    """Lines and stations of every pass; ``scale`` (<= 1) shrinks the frame rectangle to its
+    size on the highest ground under the frames (1 over flat ground)."""
+    survey = spec.survey
+    camera = spec.camera
+    speed_m_s = survey.speed_m_s
+    pass_plans: list[PassPlan] = []
+    views: ViewShares | None = None
+    for index, pdef in enumerate(pass_defs):
+        up = (
+            pdef.look_heading_deg
+            if pdef.look_heading_deg is not None
+            else ex.up_bearing_deg(pdef.direction_deg, spec.orientation)
+        )
+        pass_alt_m = pdef.alt_agl_m if pdef.alt_agl_m is not None else alt_agl_m
+        flat = ex.frame_rectangle(camera, pass_alt_m, pdef.direction_deg, up, pdef.tilt_deg)
+        rect = ex.FrameRectangle(
+            u_min_m=flat.u_min_m * scale, u_max_m=flat.u_max_m * scale,
+            v_min_m=flat.v_min_m * scale, v_max_m=flat.v_max_m * scale,
+        )  # fmt: skip
+        trigger_m = ex.air_base_m(rect.along_m, pdef.front_overlap_pct)
+        spacing_m = ex.air_base_m(rect.across_m, pdef.side_overlap_pct)
+        speed_m_s = _check_speed(spec, pdef, trigger_m, pass_alt_m, speed_m_s, warnings)
+        area_uv = _rotate(area_xy, pdef.direction_deg)
+        blocked_uv = _rotate(blocked_xy, pdef.direction_deg) if blocked_xy is not None else None
+        hover = survey.trigger is TriggerMode.HOVER
+        step_m = trigger_m if hover else trig.station_step_m(trigger_m, speed_m_s)
+        layout = layout_pass(area_uv, blocked_uv, rect, step_m, spacing_m)
+        segments = layout.segments
+        if not hover:
+            segments = tuple(
+                part
+                for seg in segments
+                for part in split_run(seg, trig.max_run_stations(seg.spacing_m, speed_m_s))
+            )
+        if layout.uncovered_m2 > 0:
+            warnings.append(
+                f"{pdef.name}: {layout.uncovered_m2:.0f} m2 beside exclusion zones cannot be seen "
+                f"without flying over them"
+            )
+        if index == 0:
+            views = view_shares(area_uv, segments, rect, trigger_m, spacing_m)
+        near_gsd, far_gsd = near_far_gsd_cm(camera, pass_alt_m, pdef.tilt_deg)
+        pass_plans.append(
+            PassPlan(
+                index=index,
+                kind=pdef.kind,
+                name=pdef.name,
+                direction_deg=pdef.direction_deg,
+                tilt_deg=pdef.tilt_deg,
+                look_heading_deg=pdef.look_heading_deg,
+                rect=rect,
+                trigger_distance_m=trigger_m,
+                line_spacing_m=spacing_m,
+                segments=segments,
+                near_gsd_cm=near_gsd,
+                far_gsd_cm=far_gsd,
+                centre_gsd_cm=(
+                    gsd_cm if pdef.tilt_deg == 0 else max(tilted_gsd_cm(camera, alt_agl_m, pdef.tilt_deg))
+                )
+                if pdef.alt_agl_m is None
+                else camera.gsd_cm(pdef.alt_agl_m),
+                alt_agl_m=pdef.alt_agl_m,
+            )
+        )
+    assert views is not None
+    return pass_plans, views, speed_m_s
+
+
+def _read_dem(spec: MissionSpec, area_lonlat: Polygon | MultiPolygon, home: HomePosition) -> Dem:
+    """Only the DEM around the area and home (with a margin for the turnarounds and footprints)."""
     assert spec.terrain is not None
-    # Read only the DEM around the area and home (with a margin for the turnarounds).
     west, south, east, north = area_lonlat.bounds
     west, east = min(west, home.lon_deg), max(east, home.lon_deg)
     south, north = min(south, home.lat_deg), max(north, home.lat_deg)
     margin = 0.01
-    dem = Dem.from_geotiff(spec.terrain.dem_path, bounds_lonlat=(west - margin, south - margin,
-                                                                  east + margin, north + margin))  # fmt: skip
-    footprint = spec.camera.footprint(alt_agl_m, spec.orientation)
-    return apply_terrain(
-        built,
-        dem=dem,
-        terrain=spec.terrain,
-        frame=frame,
-        home=home,
-        home_xy=home_xy,
-        alt_agl_m=alt_agl_m,
-        speed_m_s=speed_m_s,
-        max_alt_agl_m=spec.vehicle.max_alt_agl_m,
-        line_spacing_by_pass_m={p.index: p.line_spacing_m for p in pass_plans},
-        footprint_across_m=footprint.across_m,
-        footprint_along_m=footprint.along_m,
+    return Dem.from_geotiff(
+        spec.terrain.dem_path, bounds_lonlat=(west - margin, south - margin, east + margin, north + margin)
     )
+
+
+def _judge_terrain_overlaps(spec: MissionSpec, terrain: TerrainSummary, warnings: list[str]) -> None:
+    """The overlaps of the footprints cast on the DEM against the spec: gaps at constant altitude
+    fail unless accepted; a shortfall is a warning."""
+    assert spec.terrain is not None
+    survey = spec.survey
+    front, side = terrain.front_overlap_min_pct, terrain.side_overlap_min_pct
+    figures = (
+        f"over the DEM the frames overlap by as little as {front:.0f} % forward and {side:.0f} % side "
+        f"(planned {survey.front_overlap_pct:g} % and {survey.side_overlap_pct:g} %; the stations are "
+        f"{terrain.station_alt_agl_min_m:.1f} to {terrain.station_alt_agl_max_m:.1f} m above the ground)"
+    )
+    gaps = side < 0.0 or front < 0.0
+    if not spec.terrain.follow and gaps and not spec.terrain.accept_overlap_loss:
+        raise PlanningError(
+            f"{spec.source}: {figures}: gaps open between the frames where the ground is high; set "
+            f"follow = true in [terrain] (or fly higher), or set accept_overlap_loss = true in "
+            f"[terrain] to fly it anyway"
+        )
+    if front < survey.front_overlap_pct - 1.0 or side < survey.side_overlap_pct - 1.0:
+        fix = (
+            "set follow = true in [terrain]" if not spec.terrain.follow else "lower tolerance_m in [terrain]"
+        )
+        warnings.append(f"{figures}{' (gaps between frames)' if gaps else ''}; {fix}")
 
 
 def auto_direction_deg(area_xy: Polygon | MultiPolygon) -> float:
@@ -422,7 +536,7 @@ def _check_speed(
     if spec.survey.adjust_speed:
         warnings.append(f"speed lowered from {speed_m_s:g} to {safe:g} m/s: {why}")
         return safe
-    raise PlanningError(
+    raise SpecError(
         f"{spec.source}: speed_m_s = {speed_m_s:g} is too fast: {why}, so at most {safe:g} m/s; "
         f"lower speed_m_s, lower the overlaps, or set adjust_speed = true"
     )

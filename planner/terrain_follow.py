@@ -22,6 +22,7 @@ height above the ground below them.
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import logging
 import math
 from dataclasses import dataclass
@@ -29,10 +30,13 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from .camera import Camera
 from .errors import PlanningError
+from .footprint import cast_on_dem, image_grid_mm
 from .geo import LocalFrame
 from .mission import HomePosition, MavCmd, MissionItem
-from .mission_builder import BuiltMission
+from .mission_builder import BuiltMission, PassPlan
+from .plan import Stations
 from .spec import TerrainSpec
 from .terrain import Dem
 
@@ -61,6 +65,10 @@ class TerrainSummary:
     path_alt_agl_max_m: float
     alt_rel_home_max_m: float
     waypoints_added: int
+    #: The frame size lines and triggers were spaced for, relative to flat ground (1: flat).
+    footprint_scale: float
+    #: The smallest height above the highest ground a nadir frame sees, over the planned height.
+    footprint_scale_min: float
 
     def as_dict(self) -> dict[str, object]:
         return dataclasses.asdict(self)
@@ -120,9 +128,9 @@ def apply_terrain(
     alt_agl_m: float,
     speed_m_s: float,
     max_alt_agl_m: float,
-    line_spacing_by_pass_m: dict[int, float],
-    footprint_across_m: float,
-    footprint_along_m: float,
+    passes: list[PassPlan],
+    camera: Camera,
+    footprint_scale: float = 1.0,
 ) -> tuple[BuiltMission, HomePosition, TerrainSummary]:
     """Waypoint altitudes, extra waypoints and station heights over the DEM (module docstring)."""
     path = built.path_xy_m
@@ -225,12 +233,17 @@ def apply_terrain(
     st_alt = np.interp(built.station_s_m, np.asarray(wp_s), np.asarray(wp_alt))
     st_ground = dem.elevation_at(st.x_m, st.y_m, frame) if n else np.zeros(0)
     st_agl = st_alt - st_ground
-    # Over locally flat ground a frame's footprint scales about the camera with its height.
+    # Footprints cast on the DEM from each station's flown position (rays through a grid of the
+    # image), the GSD scaled by the height above the ground below the camera.
     scale = st_agl / alt_agl_m
     corners = st.footprint_xy_m
+    cast = np.zeros((0, _GRID * _GRID, 3))
     if n:
-        centre = np.stack([st.x_m, st.y_m], axis=-1)[:, None, :]
-        corners = centre + (st.footprint_xy_m - centre) * scale[:, None, None]
+        up = _up_bearing_grid_deg(st.footprint_xy_m)
+        cast = cast_on_dem(
+            camera, st.x_m, st.y_m, st_alt, up, st.tilt_deg, dem, frame, image_grid_mm(camera, _GRID)
+        )
+        corners = cast[:, [0, _GRID - 1, _GRID * _GRID - 1, _GRID * (_GRID - 1)], :2]
         clon, clat = frame.to_lonlat(corners[..., 0].ravel(), corners[..., 1].ravel())
         corners_ll = np.stack([clon.reshape(n, 4), clat.reshape(n, 4)], axis=-1)
     else:
@@ -243,9 +256,15 @@ def apply_terrain(
         footprint_xy_m=corners,
         footprint_lonlat_deg=corners_ll,
     )
-    front_min, side_min = _overlap_minimums(
-        stations, scale, footprint_along_m, footprint_across_m, line_spacing_by_pass_m
-    )
+    front_min, side_min = cast_overlap_minimums(stations, cast, passes)
+    nadir = st.tilt_deg == 0.0
+    if n and nadir.any():
+        # Height above the highest ground the frame sees, over the planned height: the frame's
+        # size there, relative to flat ground.
+        highest = cast[nadir, :, 2].max(axis=1)
+        scale_min = float(np.min((st_alt[nadir] - highest) / alt_agl_m))
+    else:
+        scale_min = 1.0
     new_home = dataclasses.replace(home, alt_amsl_m=home_ground)
     mission = dataclasses.replace(built.mission, items=tuple(items), home=new_home)
     summary = TerrainSummary(
@@ -264,32 +283,118 @@ def apply_terrain(
         path_alt_agl_max_m=agl_max,
         alt_rel_home_max_m=float(np.max(flown) - home_ground),
         waypoints_added=sum(len(v) for v in extra_by_leg.values()),
+        footprint_scale=footprint_scale,
+        footprint_scale_min=scale_min,
     )
     log.info("terrain: %d waypoints added, height above ground %.1f-%.1f m", summary.waypoints_added,
              summary.station_alt_agl_min_m, summary.station_alt_agl_max_m)  # fmt: skip
     return dataclasses.replace(built, mission=mission, stations=stations), new_home, summary
 
 
-def _overlap_minimums(
-    stations: object,
-    scale: NDArray[np.float64],
-    along_m: float,
-    across_m: float,
-    spacing_by_pass: dict[int, float],
-) -> tuple[float, float]:
-    """Smallest forward and side overlap (percent) of the nadir frames, from each frame's own
-    height above ground (a frame's footprint scales with it)."""
-    from .plan import Stations
+#: Rays per image side cast on the DEM for each frame (a _GRID x _GRID grid, border included).
+_GRID = 5
 
-    assert isinstance(stations, Stations)
+
+def _up_bearing_grid_deg(corners: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The grid bearing the top of each image points toward, from its flat-ground footprint
+    (TL, TR, BR, BL): from the bottom edge's middle to the top edge's."""
+    top = (corners[:, 0] + corners[:, 1]) / 2.0
+    bottom = (corners[:, 3] + corners[:, 2]) / 2.0
+    d = top - bottom
+    return np.asarray(np.degrees(np.arctan2(d[:, 0], d[:, 1])) % 360.0, float)
+
+
+def cast_overlap_minimums(
+    stations: Stations, cast: NDArray[np.float64], passes: list[PassPlan]
+) -> tuple[float, float]:
+    """Smallest forward and side overlap (percent) of the nadir frames, from their footprints cast
+    on the DEM (``cast``: (N, K, 3) ground points of an image grid, see cast_on_dem).
+
+    In each pass's frame (u along the lines, v across), a frame's four image edges are its back,
+    front, left and right edges (by their mean u and v). Forward: for consecutive stations of a
+    run, the front edge's nearest point to the camera minus the next frame's farthest back-edge
+    point, over the frame's length. Side: for each station and the station of the next line
+    nearest along the line, the right edge's nearest point minus that frame's farthest left-edge
+    point. The overlap is given as a share of the frame's length (width) where they meet:
+    overlap / (overlap + the cameras' distance), which over flat ground is Eq. 3-5's
+    1 - B / D. Negative: a gap."""
     nadir = stations.tilt_deg == 0.0
-    if not nadir.any():
-        return 0.0, 0.0
-    x, y, sc = stations.x_m[nadir], stations.y_m[nadir], scale[nadir]
-    line, pas = stations.line_index[nadir], stations.pass_index[nadir]
-    step = np.hypot(np.diff(x), np.diff(y))
-    same = (np.diff(line) == 0) & (np.diff(pas) == 0) & (step < along_m)
-    front = 1.0 - step[same] / (along_m * np.minimum(sc[:-1], sc[1:])[same])
-    spacing = np.array([spacing_by_pass[int(p)] for p in pas])
-    side = 1.0 - spacing / (across_m * sc)
-    return (float(100.0 * front.min()) if front.size else 100.0), float(100.0 * side.min())
+    if not nadir.any() or cast.shape[0] == 0:
+        return 100.0, 100.0
+    g = _GRID
+    idx = np.arange(g * g).reshape(g, g)
+    edges = [idx[0, :], idx[-1, :], idx[:, 0], idx[:, -1]]
+    front_all: list[float] = []
+    side_all: list[float] = []
+    for pp in passes:
+        if pp.tilt_deg != 0.0:
+            continue
+        mask = nadir & (stations.pass_index == pp.index)
+        if not mask.any():
+            continue
+        t = math.radians(pp.direction_deg)
+        u_st = stations.x_m[mask] * math.sin(t) + stations.y_m[mask] * math.cos(t)
+        v_st = stations.x_m[mask] * math.cos(t) - stations.y_m[mask] * math.sin(t)
+        pts = cast[mask]
+        u = pts[..., 0] * math.sin(t) + pts[..., 1] * math.cos(t)
+        v = pts[..., 0] * math.cos(t) - pts[..., 1] * math.sin(t)
+        mean_u = np.stack([u[:, e].mean(axis=1) for e in edges], axis=1)  # (M, 4)
+        mean_v = np.stack([v[:, e].mean(axis=1) for e in edges], axis=1)
+        rows = np.arange(len(u))
+        e_front, e_back = np.argmax(mean_u - u_st[:, None], axis=1), np.argmin(mean_u - u_st[:, None], axis=1)
+        e_right, e_left = np.argmax(mean_v - v_st[:, None], axis=1), np.argmin(mean_v - v_st[:, None], axis=1)
+        edge_idx = np.stack(edges)  # (4, g)
+
+        def edge(k: int, which: NDArray[np.intp]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+            points = edge_idx[which[k]]
+            return u[k, points], v[k, points]
+
+        line = stations.line_index[mask]
+        for row in np.unique(line):
+            k = np.flatnonzero(line == row)
+            k = k[np.argsort(u_st[k])]
+            for a, b in itertools.pairwise(k):
+                if u_st[b] - u_st[a] > pp.trigger_distance_m * 1.01:
+                    continue  # a break in the line (a notch, an exclusion), not a pair
+                fu, fv = edge(a, e_front)
+                bu, bv = edge(b, e_back)
+                front_all.append(_overlap_share(_edge_overlap(fv, fu, bv, bu), u_st[b] - u_st[a]))
+        order = sorted(np.unique(line), key=lambda r: float(np.mean(v_st[line == r])))
+        for r0, r1 in itertools.pairwise(order):
+            k0, k1 = np.flatnonzero(line == r0), np.flatnonzero(line == r1)
+            if float(np.mean(v_st[k1]) - np.mean(v_st[k0])) > pp.line_spacing_m * 1.01:
+                continue
+            nearest = k1[np.argmin(np.abs(u_st[k0][:, None] - u_st[k1][None, :]), axis=1)]
+            for a, b in zip(k0, nearest, strict=True):
+                if abs(u_st[b] - u_st[a]) > pp.trigger_distance_m:
+                    continue
+                ru, rv = edge(a, e_right)
+                lu, lv = edge(b, e_left)
+                side_all.append(_overlap_share(_edge_overlap(ru, rv, lu, lv), v_st[b] - v_st[a]))
+    front = 100.0 * min(front_all) if front_all else 100.0
+    side = 100.0 * min(side_all) if side_all else 100.0
+    return front, side
+
+
+def _edge_overlap(
+    a_along: NDArray[np.float64],
+    a_across: NDArray[np.float64],
+    b_along: NDArray[np.float64],
+    b_across: NDArray[np.float64],
+) -> float:
+    """Smallest overlap between frame a's edge and frame b's opposite edge (b lies beyond a in the
+    ``across`` direction), compared at the same positions along the edges: a's edge minus b's,
+    interpolated at a's points, over the part both edges span (cast points, polylines)."""
+    order = np.argsort(b_along)
+    lo, hi = float(b_along.min()), float(b_along.max())
+    inside = (a_along >= lo) & (a_along <= hi)
+    if not inside.any():
+        return float(np.min(a_across) - np.max(b_across))
+    b_at_a = np.interp(a_along[inside], b_along[order], b_across[order])
+    return float(np.min(a_across[inside] - b_at_a))
+
+
+def _overlap_share(overlap_m: float, base_m: float) -> float:
+    """Overlap over the frame size at the overlap (overlap + camera base); < 0 for a gap."""
+    size = overlap_m + abs(base_m)
+    return overlap_m / size if size > 1e-9 else -10.0

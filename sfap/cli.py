@@ -28,6 +28,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "geotag": ("geotag", "Geotag frames from the flight's own telemetry log."),
     "check": ("check", "Check coverage, overlap, B/H, GSD and blur of images or a plan."),
     "handoff": ("handoff", "Hand the frames to COLMAP, ODM, NodeODM, Metashape or Pix4D; run and measure."),
+    "gcp-plan": ("gcp_plan", "Lay out ground control and check points over a planned survey."),
 }
 
 

@@ -50,7 +50,29 @@ _ROWS = (
 @overwrite_option
 @json_option
 @click.option("--no-progress", is_flag=True, help="No progress bar.")
-def command(spec_file: Path, out_dir: Path, overwrite: bool, as_json: bool, no_progress: bool) -> None:
+@click.option(
+    "--resume-from",
+    "resume_from",
+    type=int,
+    default=None,
+    help="Plan only what is left from this station on (0-based, the station property of stations.geojson).",
+)
+@click.option(
+    "--resume-record",
+    "resume_record",
+    type=click.Path(exists=True, path_type=Path),
+    default=None,
+    help="Resume after the last station recorded by sfap monitor (its folder, or its triggers.csv).",
+)
+def command(
+    spec_file: Path,
+    out_dir: Path,
+    overwrite: bool,
+    as_json: bool,
+    no_progress: bool,
+    resume_from: int | None = None,
+    resume_record: Path | None = None,
+) -> None:
     """Plan a survey from SPEC_FILE (a mission spec in TOML) and write, into OUTPUT:
     mission.plan (QGroundControl), mission.waypoints (QGC WPL 110), flight_lines.geojson,
     stations.geojson, footprints.geojson, area.geojson, mission.kml, map.png and summary.json.
@@ -58,13 +80,49 @@ def command(spec_file: Path, out_dir: Path, overwrite: bool, as_json: bool, no_p
     Distances in metres, GSD in cm, altitudes above ground (AGL) or home. The files are
     written all at once: on any error nothing is left behind.
 
+    With endurance_s (or battery_capacity_mah and consumption_ma) in [vehicle], the mission is
+    also split into sorties that each fit one battery less its reserve, each in OUTPUT/sortie-NN/
+    with its own files. --resume-from N (or --resume-record MONITOR_DIR) plans only what is left
+    of the mission from station N on (after the last station the monitor recorded).
+
     Example: sfap plan missions/bardenas-gully.toml -o out/gully
     """
+    from planner.errors import InputError
+    from planner.sorties import (
+        last_station_from_record,
+        resume_plan,
+        sortie_folder,
+        sorties_summary,
+        split_sorties,
+    )
+
+    if resume_from is not None and resume_record is not None:
+        raise InputError("give --resume-from or --resume-record, not both")
     spec = load_spec(spec_file)
     plan = plan_survey(spec)
-    with progress("writing", len(OUTPUT_FILES), enabled=not no_progress and not as_json) as advance:
-        write_outputs(plan, out_dir, overwrite=overwrite, progress=advance)
+    if resume_record is not None:
+        resume_from = last_station_from_record(plan, resume_record) + 1
+        if resume_from >= len(plan.stations):
+            raise InputError(
+                f"{resume_record}: the record reached the last station ({resume_from - 1}); nothing is "
+                f"left to fly"
+            )
+    if resume_from is not None:
+        plan = resume_plan(plan, resume_from)
+    sorties = split_sorties(plan) if spec.vehicle.endurance_s is not None else []
+    total = len(OUTPUT_FILES) * (1 + len(sorties))
+    with progress("writing", total, enabled=not no_progress and not as_json) as advance:
+        if sorties:
+            from planner.sorties import write_with_sorties
+
+            write_with_sorties(plan, sorties, out_dir, overwrite=overwrite, progress=advance)
+        else:
+            write_outputs(plan, out_dir, overwrite=overwrite, progress=advance)
     summary = plan.summary.as_dict()
+    if sorties:
+        summary["sorties"] = sorties_summary(plan, sorties)
+    if resume_from is not None:
+        summary["resumed_from_station"] = resume_from
     if as_json:
         click.echo(dumps_json({**summary, "output_dir": str(out_dir)}))
         return
@@ -94,6 +152,36 @@ def command(spec_file: Path, out_dir: Path, overwrite: bool, as_json: bool, no_p
             ("lowest overlaps", lows),
             ("waypoints added for terrain", f"{terrain['waypoints_added']}"),
         ]
+    if spec.survey.scales:
+        from planner.multiscale import pass_summaries
+
+        for p in pass_summaries(plan):
+            rows.append(
+                (
+                    f"pass {p['pass']} ({p['name']})",
+                    f"{p['alt_agl_m']:.0f} m, GSD {p['gsd_cm']:.2f} cm, spacing {p['line_spacing_m']:.1f} m, "
+                    f"trigger {p['trigger_distance_m']:.1f} m, {p['photo_count']:,} photos",
+                )
+            )
+    for sortie in sorties:
+        s = sortie.plan.summary
+        seconds = round(s.flight_time_s)
+        rows.append(
+            (
+                f"sortie {sortie.number} ({sortie_folder(sortie.number)})",
+                f"{seconds // 60} min {seconds % 60:02d} s, {s.flight_distance_m:,.0f} m, "
+                f"{s.photo_count:,} photos, {sortie.line_count} lines",
+            )
+        )
     echo_table(rows, title=f"{plan.name}: planned into {out_dir}")
     for warning in plan.warnings:
+        if sorties and warning.startswith("the flight takes"):
+            continue  # the sorties below each fit one battery
         click.echo(f"warning: {warning}", err=True)
+    if sorties:
+        usable = spec.vehicle.usable_flight_s or 0.0
+        click.echo(
+            f"{len(sorties)} sorties of at most {usable / 60.0:.1f} min each (endurance less reserve) "
+            f"in {out_dir}/sortie-NN/",
+            err=True,
+        )

@@ -8,8 +8,13 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pytest
+import shapely
+from pyproj import Geod
+from shapely.geometry import LineString
 
-from planner.mission import MavCmd, Mission
+from planner.mission import Autopilot, MavCmd, Mission
+from planner.plan import SurveyPlan
 from planner.spec import MissionSpec, parse_spec
 
 REPO = Path(__file__).resolve().parents[2]
@@ -26,6 +31,7 @@ def make_spec(overrides: dict[str, Any] | None = None, camera: dict[str, Any] | 
         "turnaround_m": 10.0,
     }
     survey.update(overrides or {})
+    survey = {key: value for key, value in survey.items() if value is not None}  # None: drop the key
     data = {
         "name": "test",
         "area": "area.geojson",
@@ -100,3 +106,250 @@ def _fire_along_leg(
         last = (a[0] + t * wx, a[1] + t * wy)
         out.append(last)
         t0 = t
+
+
+# --- ArduPilot's trigger, replayed at its loop rate --------------------------------------------
+#: AP_Camera_Backend::update runs at 50 Hz (its own comment: "should be called at 50hz").
+ARDUPILOT_LOOP_HZ = 50.0
+_WGS84 = Geod(ellps="WGS84")
+
+
+def ardupilot_distance_m(lat0: np.ndarray, lon0: np.ndarray, lat1: float, lon1: float) -> np.ndarray:
+    """Location::get_distance of ArduPilot (libraries/AP_Common/Location.cpp), rewritten from its
+    source: positions as int32 of 1e-7 degree, the longitude difference times the cosine of the
+    mean latitude, times LOCATION_SCALING_FACTOR = 6378100 m x pi/180 x 1e-7."""
+    a_lat, a_lon = np.round(np.asarray(lat0) * 1e7), np.round(np.asarray(lon0) * 1e7)
+    b_lat, b_lon = round(lat1 * 1e7), round(lon1 * 1e7)
+    dlat = b_lat - a_lat
+    dlng = (b_lon - a_lon) * np.cos(np.radians((a_lat + b_lat) / 2 * 1e-7))
+    return np.sqrt(dlat**2 + dlng**2) * (6378100.0 * math.pi / 180.0 * 1e-7)
+
+
+def px4_distance_m(lat0: np.ndarray, lon0: np.ndarray, lat1: float, lon1: float) -> np.ndarray:
+    """Great-circle distance on PX4's sphere (CONSTANTS_RADIUS_OF_EARTH = 6371000 m)."""
+    p0, p1 = np.radians(lat0), math.radians(lat1)
+    h = np.sin((p1 - p0) / 2) ** 2 + np.cos(p0) * math.cos(p1) * np.sin(np.radians(lon1 - lon0) / 2) ** 2
+    return 2 * 6371000.0 * np.arcsin(np.sqrt(h))
+
+
+def replay_at_loop_rate(
+    mission: Mission, loop_hz: float = ARDUPILOT_LOOP_HZ, autopilot: Autopilot | None = None
+) -> np.ndarray:
+    """Where the camera fires when the vehicle flies the mission at its commanded speeds and the
+    autopilot checks the trigger distance once per loop, measured its own way.
+
+    The vehicle flies straight legs between the NAV items at the speed of the last
+    DO_CHANGE_SPEED (true ground metres, WGS84 geodesic), and passes through each waypoint; the DO
+    items that follow a waypoint run at the first loop at or after reaching it, after that loop's
+    camera check (AP_Camera: fire when get_distance(last photo) >= trigger distance; distance 0
+    forgets the last photo; DO_SET_CAM_TRIGG_DIST(d, _, 1) fires at once). Returns (N, 2)
+    lon/lat of the photos, in order.
+    """
+    autopilot = autopilot or mission.autopilot
+    distance = ardupilot_distance_m if autopilot is Autopilot.ARDUPILOT else px4_distance_m
+    nav: list[tuple[float, float]] = []  # lon, lat of each NAV point
+    leg_speed: list[float] = []  # speed of the leg ending at each NAV point
+    events: list[list[tuple[str, float, float]]] = []  # DO items after each NAV point
+    speed = mission.hover_speed_m_s
+    for item in mission.items:
+        command = int(item.command)
+        if command in (MavCmd.NAV_WAYPOINT, MavCmd.NAV_TAKEOFF):
+            nav.append((item.lon_deg, item.lat_deg))
+            leg_speed.append(speed)
+            events.append([])
+        elif command == MavCmd.DO_CHANGE_SPEED:
+            assert item.param2 is not None
+            speed = float(item.param2)
+        elif command == MavCmd.DO_SET_CAM_TRIGG_DIST and nav:
+            assert item.param1 is not None
+            events[-1].append(("dist", float(item.param1), float(item.param3 or 0.0)))
+        elif command == MavCmd.IMAGE_START_CAPTURE and nav:
+            events[-1].append(("shot", 0.0, 1.0))
+    lon = np.array([p[0] for p in nav])
+    lat = np.array([p[1] for p in nav])
+    _, _, legs = _WGS84.inv(lon[:-1], lat[:-1], lon[1:], lat[1:])
+    t_nav = np.concatenate([[0.0], np.cumsum(np.asarray(legs) / np.asarray(leg_speed[1:]))])
+    dt = 1.0 / loop_hz
+    n_ticks = int(math.ceil(t_nav[-1] / dt)) + 1
+    t = np.arange(n_ticks) * dt
+    # Straight legs: interpolate in lon/lat within each leg (legs are a few km at most).
+    tick_lon = np.interp(t, t_nav, lon)
+    tick_lat = np.interp(t, t_nav, lat)
+    reach_tick = np.minimum(np.ceil(t_nav / dt - 1e-9).astype(int), n_ticks - 1)
+
+    photos: list[int] = []
+    trig = 0.0
+    last: int | None = None  # tick of the last photo (None: forgotten)
+    tick = 0
+    for i in range(len(nav)):
+        k_event = int(reach_tick[i])
+        # camera checks on the ticks up to and including the one that reaches this waypoint
+        while trig > 0 and tick <= k_event:
+            if last is None:
+                last = tick
+                tick += 1
+                continue
+            window = np.arange(tick, min(k_event, tick + 1024) + 1)
+            d = distance(tick_lat[window], tick_lon[window], float(tick_lat[last]), float(tick_lon[last]))
+            moved = (tick_lat[window] != tick_lat[last]) | (tick_lon[window] != tick_lon[last])
+            hit = np.nonzero((d >= trig) & moved)[0]
+            if hit.size == 0:
+                tick = int(window[-1]) + 1
+                continue
+            last = int(window[hit[0]])
+            photos.append(last)
+            tick = last + 1
+        tick = k_event + 1
+        for kind, value, now in events[i]:
+            if kind == "dist":
+                trig = value
+                if trig <= 0:
+                    last = None
+                if now == 1.0:
+                    photos.append(k_event)
+                    last = k_event
+            else:
+                photos.append(k_event)
+                last = k_event
+    return np.column_stack([tick_lon[photos], tick_lat[photos]]) if photos else np.zeros((0, 2))
+
+
+# --- the planner's promises, measured on a plan -------------------------------------------------
+
+
+def sample_points(area: shapely.Geometry, cell_m: float) -> np.ndarray:
+    """Points of a regular grid inside the area plus points every metre along its boundary."""
+    u0, v0, u1, v1 = area.bounds
+    gx, gy = np.meshgrid(np.arange(u0 + cell_m / 2, u1, cell_m), np.arange(v0 + cell_m / 2, v1, cell_m))
+    gx, gy = gx.ravel(), gy.ravel()
+    inside = shapely.contains_xy(area, gx, gy)
+    grid = np.column_stack([gx[inside], gy[inside]])
+    rings = [g.exterior for g in getattr(area, "geoms", [area])]
+    rings += [r for g in getattr(area, "geoms", [area]) for r in g.interiors]
+    edge = [shapely.get_coordinates(ring.interpolate(np.arange(0.0, ring.length, 1.0))) for ring in rings]
+    return np.vstack([grid, *edge])
+
+
+def views(footprints_xy: np.ndarray, points: np.ndarray, tolerance_m: float = 1e-6) -> np.ndarray:
+    """How many footprints (N, 4, 2) hold each point, edges (to ``tolerance_m``) included
+    (shapely, no planner code)."""
+    polygons = shapely.polygons(footprints_xy)
+    tree = shapely.STRtree(polygons)
+    hits = tree.query(shapely.points(points), predicate="dwithin", distance=tolerance_m)
+    return np.bincount(hits[0], minlength=len(points))
+
+
+def random_points(area: shapely.Geometry, n: int, seed: int = 1) -> np.ndarray:
+    """``n`` points drawn uniformly in the area (rejection sampling in its bounds)."""
+    rng = np.random.default_rng(seed)
+    u0, v0, u1, v1 = area.bounds
+    out = np.zeros((0, 2))
+    while len(out) < n:
+        p = rng.uniform((u0, v0), (u1, v1), (4 * n, 2))
+        out = np.vstack([out, p[shapely.contains_xy(area, p[:, 0], p[:, 1])]])
+    return out[:n]
+
+
+def check_plan(plan: SurveyPlan, front_pct: float, side_pct: float, clearance_m: float) -> None:
+    stations = plan.stations
+    assert len(stations) > 0
+    camera = plan.camera
+    alt = float(stations.alt_agl_m[0])
+    fp = camera.footprint(alt, plan.orientation)
+    air_base = fp.along_m * (1 - front_pct / 100)
+    spacing = fp.across_m * (1 - side_pct / 100)
+    nadir = stations.pass_index == 0
+    summary = plan.summary
+
+    # 1. stereo: every point of the area (exclusions removed) is seen by two nadir frames, and the
+    #    share seen by three is what summary.json says (and meets its target)
+    cell = min(air_base, spacing) / 4.0
+    points = sample_points(plan.area_xy, cell)
+    n_grid = int(np.count_nonzero(shapely.contains_xy(plan.area_xy, points[:, 0], points[:, 1])))
+    counts = views(stations.footprint_xy_m[nadir], points)
+    weak = int(np.count_nonzero(counts < 2))
+    reported = [w for w in plan.warnings if "fewer than two" in w or "cannot be seen" in w]
+    share2 = 100.0 * np.count_nonzero(counts[:n_grid] >= 2) / max(1, n_grid)
+    if reported:  # only beside an exclusion, and then said with its share
+        assert plan.exclusions_xy
+        assert abs(share2 - summary.stereo_seen_2_pct) < 1.0
+    else:
+        assert weak == 0, f"{weak} of {len(points)} sample points seen by fewer than two nadir frames"
+        assert summary.stereo_seen_2_pct == pytest.approx(100.0)
+    uniform = random_points(plan.area_xy, 20_000)
+    share3 = 100.0 * np.count_nonzero(views(stations.footprint_xy_m[nadir], uniform) >= 3) / len(uniform)
+    assert abs(share3 - summary.stereo_seen_3_pct) < 2.0
+    if 3 * air_base <= fp.along_m:
+        assert summary.stereo_seen_3_target_pct > 0
+        assert summary.stereo_seen_3_pct >= summary.stereo_seen_3_target_pct or any(
+            "three or more" in w for w in plan.warnings
+        )
+
+    # 2. the lines, measured: main lines one spacing apart (no more than the sidelap allows),
+    #    the fewest that span the area, the block centred (equal margins at both edges)
+    for p in plan.passes:
+        if p.tilt_deg != 0.0:
+            continue
+        line = p.lines[0]
+        bearing = math.atan2(line.end_xy_m[0] - line.start_xy_m[0], line.end_xy_m[1] - line.start_xy_m[1])
+        if line.start_xy_m == line.end_xy_m:
+            continue
+        mask = stations.pass_index == p.index
+        across = stations.x_m[mask] * math.cos(bearing) - stations.y_m[mask] * math.sin(bearing)
+        area_v = shapely.get_coordinates(plan.area_xy)
+        area_across = area_v[:, 0] * math.cos(bearing) - area_v[:, 1] * math.sin(bearing)
+        rows = np.unique(np.round(across, 4))
+        assert p.line_spacing_m == pytest.approx(spacing, rel=1e-9)
+        width = fp.across_m
+        span = float(area_across.max() - area_across.min())
+        n_main = max(1, math.ceil((span - width) / spacing - 1e-9) + 1)
+        first, last = float(rows.min()), float(rows.max())
+        assert last - first == pytest.approx((n_main - 1) * spacing, abs=1e-3)
+        margin_lo = area_across.min() - (first - width / 2)
+        margin_hi = (last + width / 2) - area_across.max()
+        assert margin_lo >= -1e-3 and margin_hi >= -1e-3
+        assert margin_lo == pytest.approx(margin_hi, abs=1e-3), "line block not centred on the area"
+        # every row is a main line of that progression or a fill line between them
+        assert first >= area_across.min() - width / 2 and last <= area_across.max() + width / 2
+
+    # 3. along each camera-on run the stations are at most an air base apart
+    for p in plan.passes:
+        mask = np.flatnonzero(stations.pass_index == p.index)
+        xy = np.column_stack([stations.x_m[mask], stations.y_m[mask]])
+        base = p.trigger_distance_m
+        for line_obj in p.lines:
+            run = LineString([line_obj.start_xy_m, line_obj.end_xy_m])
+            on = shapely.distance(run, shapely.points(xy)) < 1e-3
+            assert on.any(), "a camera-on run with no station"
+            along = np.sort(shapely.line_locate_point(run, shapely.points(xy[on])))
+            assert np.all(np.diff(along) <= base + 1e-6)
+            assert run.length > 0, "a zero-length camera-on line"
+
+    # 4. camera-on segments stay within the area's buffer and out of exclusions
+    half_diagonal = 0.5 * math.hypot(fp.along_m, fp.across_m)
+    buffer = plan.area_xy.buffer(half_diagonal + 1e-6)
+    zones = shapely.union_all(plan.exclusions_xy) if plan.exclusions_xy else None
+    for p in plan.passes:
+        for line_obj in p.lines:
+            seg = LineString([line_obj.start_xy_m, line_obj.end_xy_m])
+            assert buffer.contains(seg), "camera on outside the area's buffer"
+            if zones is not None:
+                assert seg.distance(zones) >= clearance_m - 1e-6, "camera on inside an exclusion"
+    if zones is not None:
+        pts = shapely.points(stations.x_m, stations.y_m)
+        assert not np.any(shapely.intersects(zones, pts)), "a station inside an exclusion"
+
+    # 5. ArduPilot's trigger replayed at its loop rate, distances on its sphere: every station
+    #    fires once, near where it is planned, and the frames it takes still see every point twice
+    fired_ll = replay_at_loop_rate(plan.mission)
+    assert len(fired_ll) == len(stations), (
+        f"autopilot fires {len(fired_ll)} photos, plan says {len(stations)}"
+    )
+    fx, fy = plan.frame.to_xy(fired_ll[:, 0], fired_ll[:, 1])
+    offset = np.hypot(fx - stations.x_m, fy - stations.y_m)
+    assert np.max(offset) < 0.5 * air_base
+    moved = stations.footprint_xy_m + np.stack([fx - stations.x_m, fy - stations.y_m], axis=-1)[:, None, :]
+    fired_counts = views(moved[nadir], points, tolerance_m=0.05)  # positions to 1e-7 degree
+    assert np.count_nonzero(fired_counts < 2) <= (weak if reported else 0), (
+        "the photos fired leave stereo gaps"
+    )

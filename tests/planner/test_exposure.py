@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 from planner import exposure as ex
 from planner.camera import Camera, Orientation
 from planner.camera_db import get_camera, load_cameras
-from planner.errors import PlanningError
+from planner.errors import SpecError
 from planner.footprint import footprint_corners, near_far_gsd_cm, tilted_gsd_cm
 
 CANON = get_camera("canon-eos-350d-20mm")
@@ -132,7 +132,7 @@ def test_tilted_gsd_reduces_to_eq_3_4() -> None:
 
 
 def test_far_edge_above_horizon_is_refused() -> None:
-    with pytest.raises(PlanningError, match="horizon"):
+    with pytest.raises(SpecError, match="horizon"):
         footprint_corners(CANON, 0, 0, 100.0, 0.0, 80.0)
 
 

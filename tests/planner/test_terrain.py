@@ -12,7 +12,7 @@ import rasterio
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from rasterio.transform import from_origin
-from survey_oracles import replay_triggers
+from survey_oracles import replay_at_loop_rate
 
 from planner.errors import PlanningError, SpecError, TerrainError
 from planner.mission import MavCmd
@@ -80,21 +80,30 @@ def test_following_keeps_the_height_above_ground(terrain_plan: SurveyPlan, dem: 
     assert terrain_plan.home.alt_amsl_m == pytest.approx(home_ground)
 
 
-def test_following_keeps_stations_and_trigger_plan(terrain_plan: SurveyPlan) -> None:
+def test_following_spaces_for_the_highest_ground_and_fires_every_station(terrain_plan: SurveyPlan) -> None:
     flat = plan_survey(load_spec(MISSIONS / "bardenas-gully.toml"))
-    # the same horizontal stations: distance triggering is horizontal
-    assert len(terrain_plan.stations) == len(flat.stations)
-    np.testing.assert_allclose(terrain_plan.stations.x_m, flat.stations.x_m, atol=1e-6)
-    fired = replay_triggers(terrain_plan.mission, terrain_plan.frame.to_xy)
+    terrain = terrain_plan.summary.terrain
+    assert terrain is not None
+    # over the hill the frames are smaller: lines and triggers closer than over flat ground
+    assert terrain_plan.summary.line_spacing_m < flat.summary.line_spacing_m
+    assert terrain_plan.summary.trigger_distance_m < flat.summary.trigger_distance_m
+    assert terrain["footprint_scale"] <= terrain["footprint_scale_min"] + 1e-9  # type: ignore[operator]
+    # distance triggering is horizontal: ArduPilot's trigger, replayed at its loop rate, fires
+    # as many photos as the plan has stations, each near its station
+    fired = replay_at_loop_rate(terrain_plan.mission)
     assert len(fired) == len(terrain_plan.stations)
-    planned = np.column_stack([terrain_plan.stations.x_m, terrain_plan.stations.y_m])
-    assert np.max(np.hypot(*(fired - planned).T)) < 0.1
+    x, y = terrain_plan.frame.to_xy(fired[:, 0], fired[:, 1])
+    assert np.max(np.hypot(x - terrain_plan.stations.x_m, y - terrain_plan.stations.y_m)) < 5.0
 
 
-def test_constant_altitude_reports_the_spread(tmp_path: Path, dem: Dem) -> None:
+def test_constant_altitude_that_opens_gaps_fails_unless_accepted(tmp_path: Path, dem: Dem) -> None:
     source = (MISSIONS / "bardenas-gully-terrain.toml").read_text().replace("follow = true", "follow = false")
+    source = source.replace('"bardenas-gully', f'"{MISSIONS}/bardenas-gully')
     spec_file = tmp_path / "constant.toml"
-    spec_file.write_text(source.replace('"bardenas-gully', f'"{MISSIONS}/bardenas-gully'))
+    spec_file.write_text(source)
+    with pytest.raises(PlanningError, match=r"-\d+ % side.*gaps open.*follow = true.*accept_overlap_loss"):
+        plan_survey(load_spec(spec_file))
+    spec_file.write_text(source.replace("follow = false", "follow = false\naccept_overlap_loss = true"))
     plan = plan_survey(load_spec(spec_file))
     target = plan.summary.altitude_agl_m
     st_ground = dem.elevation_at(plan.stations.x_m, plan.stations.y_m, plan.frame)
@@ -110,7 +119,7 @@ def test_constant_altitude_reports_the_spread(tmp_path: Path, dem: Dem) -> None:
     assert plan.stations.gsd_cm[high] == pytest.approx(
         plan.camera.gsd_cm(float(plan.stations.alt_agl_m[high])), rel=1e-9
     )
-    assert any("overlaps fall" in w for w in plan.warnings)
+    assert any("gaps between frames" in w for w in plan.warnings)
 
 
 @settings(max_examples=60, deadline=None, derandomize=True)

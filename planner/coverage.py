@@ -1,0 +1,106 @@
+"""How many frames of a pass see each part of the area: the stereo figures of summary.json.
+
+In the pass frame every frame surely covers the rectangle ``[u + u_min, u + u_max] x
+[v + v_min, v + v_max]`` around its station (planner.exposure.FrameRectangle), so the number of
+frames that see a point (pu, pv) is, summed over the runs whose band of v holds pv, the number
+of the run's stations with u in ``[pu - u_max, pu - u_min]`` (two binary searches). The area is
+sampled on a jittered grid (cells of an eighth of the smaller of the trigger distance and the line
+spacing, at most about a million points), so the shares are area shares to within the sampling.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import shapely
+from numpy.typing import NDArray
+from shapely.geometry import MultiPolygon, Polygon
+
+from .exposure import FrameRectangle
+from .lines import Segment
+
+_MAX_POINTS = 1_000_000
+
+
+@dataclass(frozen=True, kw_only=True)
+class ViewShares:
+    """Shares (percent) of the area seen by at least one, two and three frames of a pass."""
+
+    seen_1_pct: float
+    seen_2_pct: float
+    seen_3_pct: float
+    cell_m: float
+
+
+def view_counts(
+    points_uv: NDArray[np.float64], segments: Sequence[Segment], rect: FrameRectangle
+) -> NDArray[np.int64]:
+    """Number of the segments' frames whose rectangle holds each point (pass frame)."""
+    pu, pv = points_uv[:, 0], points_uv[:, 1]
+    counts = np.zeros(len(points_uv), np.int64)
+    order = np.argsort(pv)
+    pv_sorted = pv[order]
+    for seg in segments:
+        lo = np.searchsorted(pv_sorted, seg.v_m + rect.v_min_m - 1e-9, side="left")
+        hi = np.searchsorted(pv_sorted, seg.v_m + rect.v_max_m + 1e-9, side="right")
+        if hi <= lo:
+            continue
+        idx = order[lo:hi]
+        u = seg.u_first_m + np.arange(seg.count) * seg.spacing_m
+        first = np.searchsorted(u, pu[idx] - rect.u_max_m - 1e-9, side="left")
+        last = np.searchsorted(u, pu[idx] - rect.u_min_m + 1e-9, side="right")
+        counts[idx] += last - first
+    return counts
+
+
+def grid_points(area_uv: Polygon | MultiPolygon, cell_m: float) -> tuple[NDArray[np.float64], float]:
+    """One point in each cell of a regular grid, those inside the area (cell enlarged if needed
+    to keep to about a million points)."""
+    u0, v0, u1, v1 = area_uv.bounds
+    cells = (u1 - u0) * (v1 - v0) / (cell_m * cell_m)
+    if cells > _MAX_POINTS:
+        cell_m *= math.sqrt(cells / _MAX_POINTS)
+    us = np.arange(u0 + cell_m / 2, u1, cell_m)
+    vs = np.arange(v0 + cell_m / 2, v1, cell_m)
+    gu, gv = np.meshgrid(us, vs)
+    # One point at random in each cell (a fixed seed: the same plan gives the same figures), so
+    # that the regular pattern of the frames cannot alias with the grid.
+    jitter = np.random.default_rng(0).uniform(-0.5, 0.5, (2, gu.size)) * cell_m
+    gu, gv = gu.ravel() + jitter[0], gv.ravel() + jitter[1]
+    inside = shapely.contains_xy(area_uv, gu, gv)
+    return np.column_stack([gu[inside], gv[inside]]), cell_m
+
+
+def view_shares(
+    area_uv: Polygon | MultiPolygon,
+    segments: Sequence[Segment],
+    rect: FrameRectangle,
+    trigger_distance_m: float,
+    line_spacing_m: float,
+) -> ViewShares:
+    """Shares of the area seen by >= 1, 2, 3 frames of one pass (module docstring)."""
+    points, cell = grid_points(area_uv, min(trigger_distance_m, line_spacing_m) / 8.0)
+    if len(points) == 0:
+        # An area smaller than a cell: sample its representative point.
+        p = area_uv.representative_point()
+        points = np.array([[p.x, p.y]])
+    counts = view_counts(points, segments, rect)
+    n = len(counts)
+    return ViewShares(
+        seen_1_pct=100.0 * np.count_nonzero(counts >= 1) / n,
+        seen_2_pct=100.0 * np.count_nonzero(counts >= 2) / n,
+        seen_3_pct=100.0 * np.count_nonzero(counts >= 3) / n,
+        cell_m=cell,
+    )
+
+
+def boundary_points(area_uv: Polygon | MultiPolygon, step_m: float) -> NDArray[np.float64]:
+    """Points every ``step_m`` along the area's outer and inner rings (its edges, where a grid
+    sees least)."""
+    polygons = getattr(area_uv, "geoms", [area_uv])
+    rings = [r for p in polygons for r in (p.exterior, *p.interiors)]
+    parts = [shapely.get_coordinates(r.interpolate(np.arange(0.0, r.length, step_m))) for r in rings]
+    return np.vstack(parts) if parts else np.zeros((0, 2))

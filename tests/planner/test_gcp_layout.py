@@ -1,0 +1,117 @@
+"""Ground control layout: every point inside the area and clear of the exclusions, seen by the
+asked number of planned frames (counted here with a point-in-quadrilateral test of our own), the
+asked numbers of GCPs and check points, apart from each other; asking for more than the area
+holds is refused with the figures."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from shapely.geometry import Point, Polygon
+from survey_oracles import make_spec
+from test_survey import star_polygon, to_lonlat_polygon
+
+from planner.errors import InputError, PlanningError
+from planner.gcp_layout import GcpOptions, plan_gcps
+from planner.plan import SurveyPlan
+from planner.survey import plan_polygons
+
+
+def frames_seeing(plan: SurveyPlan, x: float, y: float) -> int:
+    """Footprints (convex quadrilaterals) holding the point: the point is on the same side of
+    all four edges."""
+    q = plan.stations.footprint_xy_m  # (N, 4, 2)
+    a, b = q, np.roll(q, -1, axis=1)
+    cross = (b[..., 0] - a[..., 0]) * (y - a[..., 1]) - (b[..., 1] - a[..., 1]) * (x - a[..., 0])
+    inside = np.all(cross > 0, axis=1) | np.all(cross < 0, axis=1)
+    return int(np.count_nonzero(inside))
+
+
+@settings(max_examples=15, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    outer=star_polygon(r_min=200.0, r_max=450.0),
+    exclusion=star_polygon(centre=(60.0, -40.0), r_min=15.0, r_max=60.0, n_max=6),
+    gcps=st.integers(3, 12),
+    checks=st.integers(0, 6),
+    min_frames=st.integers(1, 9),
+    clearance=st.floats(0.0, 20.0),
+    margin=st.floats(0.0, 15.0),
+)
+def test_points_inside_clear_and_seen(
+    outer: list[tuple[float, float]],
+    exclusion: list[tuple[float, float]],
+    gcps: int,
+    checks: int,
+    min_frames: int,
+    clearance: float,
+    margin: float,
+) -> None:
+    keep = Polygon(outer).buffer(-5).contains(Polygon(exclusion))
+    spec = make_spec({"gsd_cm": 2.5, "front_overlap_pct": 75, "side_overlap_pct": 65})
+    plan = plan_polygons(spec, [to_lonlat_polygon(outer)], [to_lonlat_polygon(exclusion)] if keep else [])
+    options = GcpOptions(
+        gcp_count=gcps,
+        check_count=checks,
+        min_frames=min_frames,
+        clearance_m=clearance,
+        edge_margin_m=margin,
+        min_separation_m=30.0,
+    )
+    layout = plan_gcps(plan, options)
+    assert sum(p.role == "gcp" for p in layout.points) == gcps
+    assert sum(p.role == "check" for p in layout.points) == checks
+    assert sum(p.placement == "corner" for p in layout.points) == min(4, gcps)
+    area = plan.area_xy
+    outline = plan.frame.geometry_to_xy(to_lonlat_polygon(outer)).exterior
+    for p in layout.points:
+        point = Point(p.x_m, p.y_m)
+        assert area.contains(point)
+        assert outline.distance(point) >= margin - 1e-6
+        for zone in plan.exclusions_xy:
+            assert zone.distance(point) >= clearance - 1e-6
+        seen = frames_seeing(plan, p.x_m, p.y_m)
+        assert seen >= min_frames
+        assert seen == p.frame_count
+        # the lon/lat written matches the projected coordinates
+        x, y = plan.frame.to_xy(p.lon_deg, p.lat_deg)
+        assert math.dist((float(x), float(y)), (p.x_m, p.y_m)) < 0.01
+    xy = np.array([(p.x_m, p.y_m) for p in layout.points])
+    d = np.hypot(xy[:, None, 0] - xy[None, :, 0], xy[:, None, 1] - xy[None, :, 1])
+    assert d[np.triu_indices(len(xy), 1)].min() >= 30.0 - 1e-6
+
+
+def test_corners_and_interior_are_spread() -> None:
+    """On a square the four corner GCPs sit near the four corners and the interior ones inside."""
+    square = [(0.0, 0.0), (600.0, 0.0), (600.0, 600.0), (0.0, 600.0)]
+    plan = plan_polygons(make_spec({"gsd_cm": 2.5}), [to_lonlat_polygon(square)], [])
+    layout = plan_gcps(plan, GcpOptions(gcp_count=9, check_count=4, min_frames=3, edge_margin_m=10.0))
+    corners_xy = [plan.frame.to_xy(*to_lonlat_polygon(square).exterior.coords[k]) for k in range(4)]
+    corner_points = [p for p in layout.points if p.placement == "corner"]
+    for cx, cy in corners_xy:
+        assert min(math.dist((float(cx), float(cy)), (p.x_m, p.y_m)) for p in corner_points) < 60.0
+    interior = [p for p in layout.points if p.placement == "interior"]
+    assert interior and all(plan.area_xy.boundary.distance(Point(p.x_m, p.y_m)) > 60.0 for p in interior)
+
+
+def test_more_points_than_the_area_holds_is_refused() -> None:
+    small = [(0.0, 0.0), (120.0, 0.0), (120.0, 100.0), (0.0, 100.0)]
+    plan = plan_polygons(make_spec({"gsd_cm": 2.0}), [to_lonlat_polygon(small)], [])
+    with pytest.raises(PlanningError) as info:
+        plan_gcps(plan, GcpOptions(gcp_count=20, check_count=5, min_frames=1, min_separation_m=30.0))
+    text = str(info.value)
+    assert "of the 25 points asked for" in text and "ask for fewer points" in text
+    with pytest.raises(InputError, match="at least 3 GCPs"):
+        GcpOptions(gcp_count=2)
+
+
+def test_expected_accuracy_follows_the_gsd() -> None:
+    square = [(0.0, 0.0), (300.0, 0.0), (300.0, 300.0), (0.0, 300.0)]
+    plan = plan_polygons(make_spec({"gsd_cm": 2.0}), [to_lonlat_polygon(square)], [])
+    acc = plan_gcps(plan, GcpOptions(gcp_count=5, check_count=2, min_frames=3)).expected_accuracy()
+    assert acc["horizontal_rmse_m"] == pytest.approx([0.02, 0.04], rel=1e-3)
+    assert acc["vertical_rmse_m"] == pytest.approx([0.03, 0.06], rel=1e-3)
+    assert "rule of thumb" in str(acc["basis"])

@@ -1,0 +1,189 @@
+"""Sorties by endurance and resume plans: every sortie within endurance less its reserve, the
+sorties together fly the whole plan's stations once each, and a resume plan flies exactly the
+stations left."""
+
+from __future__ import annotations
+
+import csv
+import math
+from collections import Counter
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from pyproj import Geod
+from shapely.geometry import Polygon
+from survey_oracles import REPO
+
+from planner.errors import InputError, PlanningError
+from planner.mission import MavCmd
+from planner.plan import SurveyPlan
+from planner.sorties import last_station_from_record, resume_plan, split_sorties
+from planner.spec import MissionSpec, parse_spec
+from planner.survey import plan_polygons
+
+LON0, LAT0 = -1.60, 42.50
+M_PER_DEG_LAT = 111_132.0
+M_PER_DEG_LON = 111_320.0 * math.cos(math.radians(LAT0))
+GEOD = Geod(ellps="WGS84")
+
+
+def lonlat_polygon(xy: list[tuple[float, float]]) -> Polygon:
+    return Polygon([(LON0 + x / M_PER_DEG_LON, LAT0 + y / M_PER_DEG_LAT) for x, y in xy])
+
+
+def spec_with(survey: dict[str, Any], vehicle: dict[str, Any]) -> MissionSpec:
+    base = {"gsd_cm": 2.0, "front_overlap_pct": 75, "side_overlap_pct": 65, "speed_m_s": 8.0}
+    data = {
+        "name": "sorties",
+        "area": "area.geojson",
+        "camera": {"model": "dji-phantom-4-pro"},
+        "survey": {**base, **survey},
+        "vehicle": {"type": "multirotor", "max_alt_agl_m": 400, **vehicle},
+    }
+    return parse_spec(data, REPO / "tests" / "spec.toml")
+
+
+def station_keys(plan: SurveyPlan) -> Counter[tuple[int, float, float]]:
+    st_ = plan.stations
+    return Counter(
+        (int(p), round(float(x), 1), round(float(y), 1))
+        for p, x, y in zip(st_.pass_index, st_.x_m, st_.y_m, strict=True)
+    )
+
+
+def path_length_m(plan: SurveyPlan) -> float:
+    """Home, every positional item of the mission, home: on the ellipsoid (pyproj), not the
+    planner's projected path."""
+    lons = [plan.home.lon_deg]
+    lats = [plan.home.lat_deg]
+    for item in plan.mission.items:
+        if int(item.command) == MavCmd.NAV_WAYPOINT:
+            lons.append(item.lon_deg)
+            lats.append(item.lat_deg)
+    lons.append(plan.home.lon_deg)
+    lats.append(plan.home.lat_deg)
+    return float(GEOD.line_length(lons, lats))
+
+
+@settings(max_examples=12, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    width=st.floats(200.0, 700.0),
+    height=st.floats(200.0, 600.0),
+    endurance=st.floats(300.0, 1500.0),
+    reserve=st.floats(0.0, 40.0),
+    crosshatch=st.booleans(),
+    home=st.sampled_from([(0.0, 0.0), (-150.0, -80.0), (300.0, 700.0)]),
+)
+def test_every_sortie_fits_and_the_sorties_fly_the_whole_plan_once(
+    width: float, height: float, endurance: float, reserve: float, crosshatch: bool, home: tuple[float, float]
+) -> None:
+    home_lat = LAT0 + home[1] / M_PER_DEG_LAT
+    home_lon = LON0 + home[0] / M_PER_DEG_LON
+    spec = spec_with(
+        {"crosshatch": crosshatch, "transit_speed_m_s": 12.0},
+        {"endurance_s": endurance, "reserve_pct": reserve, "home": [home_lat, home_lon]},
+    )
+    area = lonlat_polygon([(0, 0), (width, 0), (width, height), (0.3 * width, height)])
+    plan = plan_polygons(spec, [area], [])
+    usable = endurance * (1 - reserve / 100.0)
+    try:
+        sorties = split_sorties(plan)
+    except PlanningError as error:
+        # Only when one line alone, from home and back, is longer than the battery allows.
+        assert "sortie of its own" in str(error)
+        return
+    whole = station_keys(plan)
+    together: Counter[tuple[int, float, float]] = Counter()
+    for sortie in sorties:
+        s = sortie.plan
+        assert s.summary.flight_time_s <= usable + 1e-6
+        # An independent lower bound of the time: the ellipsoidal length of the items at the
+        # transit speed, the climbs and the descent at the climb rate.
+        climbs_s = (2 * s.summary.altitude_agl_m) / spec.vehicle.climb_rate_m_s
+        assert path_length_m(s) / 12.0 + climbs_s <= s.summary.flight_time_s * 1.01
+        items = s.mission.items
+        assert int(items[0].command) == MavCmd.NAV_TAKEOFF
+        assert (items[0].lat_deg, items[0].lon_deg) == pytest.approx((home_lat, home_lon))
+        assert int(items[-1].command) == MavCmd.NAV_RETURN_TO_LAUNCH
+        assert s.summary.photo_count == len(s.stations)
+        together.update(station_keys(s))
+    assert together == whole  # every station once, none twice, none left out
+    assert max(together.values()) == 1
+    if plan.summary.flight_time_s > usable:
+        assert len(sorties) >= 2
+
+
+def test_endurance_shorter_than_a_line_names_the_line_time_and_the_fix() -> None:
+    spec = spec_with({}, {"endurance_s": 120, "reserve_pct": 20})
+    plan = plan_polygons(spec, [lonlat_polygon([(0, 0), (1500, 0), (1500, 300), (0, 300)])], [])
+    with pytest.raises(PlanningError) as info:
+        split_sorties(plan)
+    text = str(info.value)
+    assert "min as a sortie of its own" in text and "1.6 min one battery allows" in text
+    assert "raise endurance_s" in text
+
+
+def test_battery_capacity_and_consumption_give_the_endurance() -> None:
+    spec = spec_with({}, {"battery_capacity_mah": 5000, "consumption_ma": 10000, "reserve_s": 600})
+    assert spec.vehicle.endurance_s == pytest.approx(1800.0)
+    assert spec.vehicle.usable_flight_s == pytest.approx(1200.0)  # 600 s > 20 % of 1800 s
+
+
+def test_scales_as_sorties_never_mix_heights() -> None:
+    spec = spec_with(
+        {"scale": [{"altitude_agl_m": 120.0}], "scale_flight": "sorties"},
+        {"endurance_s": 600, "reserve_pct": 20},
+    )
+    plan = plan_polygons(spec, [lonlat_polygon([(0, 0), (500, 0), (500, 400), (0, 400)])], [])
+    sorties = split_sorties(plan)
+    for sortie in sorties:
+        heights = {round(float(a), 3) for a in sortie.plan.stations.alt_agl_m}
+        assert len(heights) == 1
+    assert station_keys(plan) == sum((station_keys(s.plan) for s in sorties), Counter())
+
+
+@settings(max_examples=10, deadline=None, derandomize=True)
+@given(share=st.floats(0.0, 0.999))
+def test_resume_flies_exactly_the_stations_left(share: float) -> None:
+    spec = spec_with({"crosshatch": True}, {})
+    plan = plan_polygons(spec, [lonlat_polygon([(0, 0), (400, 0), (400, 300), (0, 300)])], [])
+    n = int(share * len(plan.stations))
+    resumed = resume_plan(plan, n)
+    st_ = plan.stations
+    left = Counter(
+        (int(p), round(float(x), 1), round(float(y), 1))
+        for p, x, y in zip(st_.pass_index[n:], st_.x_m[n:], st_.y_m[n:], strict=True)
+    )
+    assert station_keys(resumed) == left
+    assert int(resumed.mission.items[0].command) == MavCmd.NAV_TAKEOFF
+
+
+def test_resume_from_the_monitor_record(tmp_path: Path) -> None:
+    spec = spec_with({}, {})
+    plan = plan_polygons(spec, [lonlat_polygon([(0, 0), (400, 0), (400, 300), (0, 300)])], [])
+    reached = len(plan.stations) // 3
+    rng = np.random.default_rng(1)
+    with (tmp_path / "triggers.csv").open("w", newline="") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(["time_utc_s", "seq", "lat_deg", "lon_deg", "alt_amsl_m", "alt_rel_home_m",
+                         "roll_deg", "pitch_deg", "yaw_deg", "source"])  # fmt: skip
+        for k in range(reached + 1):
+            # GNSS noise of about a metre, as a plain receiver records
+            lon = plan.stations.lon_deg[k] + rng.normal(0, 1.0) / M_PER_DEG_LON
+            lat = plan.stations.lat_deg[k] + rng.normal(0, 1.0) / M_PER_DEG_LAT
+            writer.writerow([1000 + k, k, lat, lon, 100, 60, 0, 0, 0, "CAMERA_FEEDBACK"])
+    assert last_station_from_record(plan, tmp_path) == reached
+    (tmp_path / "other").mkdir()
+    with pytest.raises(InputError, match=r"no triggers\.csv"):
+        last_station_from_record(plan, tmp_path / "other")
+
+
+def test_resume_from_a_station_outside_the_plan_is_refused() -> None:
+    spec = spec_with({}, {})
+    plan = plan_polygons(spec, [lonlat_polygon([(0, 0), (300, 0), (300, 200), (0, 200)])], [])
+    with pytest.raises(InputError, match="has stations 0 to"):
+        resume_plan(plan, len(plan.stations))
