@@ -66,6 +66,13 @@ class VehicleSpec:
     climb_rate_m_s: float
     #: The longest flight one battery allows (a longer plan is flagged), minutes.
     max_flight_time_min: float = 30.0
+    # Fixed wing (planner.fixed_wing): the turn radius follows from the speed and the bank limit.
+    bank_limit_deg: float = 30.0
+    airspeed_min_m_s: float = 9.0  # ArduPlane AIRSPEED_MIN default
+    airspeed_max_m_s: float = 22.0  # ArduPlane AIRSPEED_MAX default
+    takeoff_pitch_deg: float = 15.0  # NAV_TAKEOFF param1
+    landing_glide_slope_deg: float = 6.0
+    landing_heading_deg: float | None = None  # true bearing flown on the final approach; None: auto
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -93,9 +100,11 @@ class MissionSpec:
     survey: SurveySpec
     vehicle: VehicleSpec
     terrain: TerrainSpec | None = None
+    #: A corridor survey (planner.corridor): the area file holds the centre line, this is its width.
+    corridor_width_m: float | None = None
 
 
-_TOP_KEYS = {"name", "area", "exclude", "camera", "survey", "vehicle", "terrain"}
+_TOP_KEYS = {"name", "area", "exclude", "camera", "survey", "vehicle", "terrain", "corridor_width_m"}
 _TERRAIN_KEYS = {
     "dem", "follow", "tolerance_m", "sample_spacing_m", "max_climb_rate_m_s", "max_descent_rate_m_s",
     "accept_overlap_loss",
@@ -110,6 +119,10 @@ _OBLIQUE_KEYS = {"tilt_deg", "headings_deg"}
 _VEHICLE_KEYS = {
     "type", "home", "home_alt_amsl_m", "takeoff_alt_m", "max_alt_agl_m", "autopilot",
     "climb_rate_m_s", "max_flight_time_min",
+}  # fmt: skip
+_FIXED_WING_KEYS = {
+    "bank_limit_deg", "airspeed_min_m_s", "airspeed_max_m_s", "takeoff_pitch_deg",
+    "landing_glide_slope_deg", "landing_heading_deg",
 }  # fmt: skip
 
 
@@ -160,6 +173,7 @@ def parse_spec(data: Mapping[str, Any], file: Path) -> MissionSpec:
     survey = _parse_survey(data.get("survey"), where)
     vehicle = _parse_vehicle(data.get("vehicle", {}), where)
     terrain = _parse_terrain(data["terrain"], base, where) if "terrain" in data else None
+    corridor_width = _opt_number(data, "corridor_width_m", where, 1.0, 10_000.0)
     return MissionSpec(
         name=name,
         source=file.resolve(),
@@ -170,6 +184,7 @@ def parse_spec(data: Mapping[str, Any], file: Path) -> MissionSpec:
         survey=survey,
         vehicle=vehicle,
         terrain=terrain,
+        corridor_width_m=corridor_width,
     )
 
 
@@ -263,7 +278,7 @@ def _parse_vehicle(value: Any, where: str) -> VehicleSpec:
     if not isinstance(value, dict):
         raise SpecError(f"{where}: [vehicle] must be a table")
     section = f"{where} [vehicle]"
-    _check_keys(value, _VEHICLE_KEYS, section, "[vehicle]")
+    _check_keys(value, _VEHICLE_KEYS | _FIXED_WING_KEYS, section, "[vehicle]")
     type_text = value.get("type", "multirotor")
     try:
         vehicle_type = VehicleType(type_text)
@@ -311,7 +326,33 @@ def _parse_vehicle(value: Any, where: str) -> VehicleSpec:
             1440.0,
             default=30.0 if vehicle_type is VehicleType.MULTIROTOR else 90.0,
         ),  # fmt: skip
+        **_parse_fixed_wing(value, vehicle_type, section),
     )
+
+
+def _parse_fixed_wing(value: Mapping[str, Any], vehicle_type: VehicleType, section: str) -> dict[str, Any]:
+    """The fixed-wing keys of [vehicle] (planner.fixed_wing), refused on other vehicles."""
+    given = sorted(set(value) & _FIXED_WING_KEYS)
+    if vehicle_type is not VehicleType.FIXED_WING:
+        if given:
+            raise SpecError(f'{section}: {", ".join(given)} only apply to type = "fixed_wing"; remove them')
+        return {}
+    from .fixed_wing import check_bank_limit, check_speed_band
+
+    bank = _number(value, "bank_limit_deg", section, -90.0, 90.0, default=30.0)
+    check_bank_limit(bank, section)
+    low = _number(value, "airspeed_min_m_s", section, 0.0, 100.0, default=9.0)
+    high = _number(value, "airspeed_max_m_s", section, 0.0, 100.0, default=22.0)
+    check_speed_band(low, high, section)
+    heading = _opt_number(value, "landing_heading_deg", section, -360.0, 360.0)
+    return {
+        "bank_limit_deg": bank,
+        "airspeed_min_m_s": low,
+        "airspeed_max_m_s": high,
+        "takeoff_pitch_deg": _number(value, "takeoff_pitch_deg", section, 5.0, 45.0, default=15.0),
+        "landing_glide_slope_deg": _number(value, "landing_glide_slope_deg", section, 2.0, 15.0, default=6.0),
+        "landing_heading_deg": None if heading is None else heading % 360.0,
+    }
 
 
 def _check_keys(data: Mapping[str, Any], valid: set[str], where: str, table: str) -> None:

@@ -29,6 +29,7 @@ from .area import build_area, check_area_size, load_polygons
 from .camera import Orientation
 from .coverage import ViewShares, view_shares
 from .errors import AreaError, PlanningError, SpecError
+from .fixed_wing import fixed_wing_for
 from .footprint import near_far_gsd_cm, tilted_gsd_cm
 from .geo import LocalFrame, geodesic_area_m2
 from .lines import layout_pass, split_run
@@ -163,6 +164,7 @@ def plan_polygons(spec: MissionSpec, polygons: list[Polygon], exclusions: list[P
             passes=pass_plans,
             zones_xy=zones_xy,
             true_north_grid_deg=true_north_grid,
+            fixed_wing=fixed_wing_for(spec, speed_m_s, true_north_grid),
         )
         terrain_summary = None
         if spec.terrain is None or dem is None:
