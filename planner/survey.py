@@ -64,6 +64,10 @@ def plan_survey(spec: MissionSpec) -> SurveyPlan:
             f'trigger = "distance" for a fixed-wing'
         )
 
+    if spec.corridor_width_m is not None:
+        from .corridor import plan_corridor
+
+        return plan_corridor(spec)
     polygons = load_polygons(spec.area_path)
     exclusions = [p for path in spec.exclude_paths for p in load_polygons(path)]
     return plan_polygons(spec, polygons, exclusions)
