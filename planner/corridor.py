@@ -508,19 +508,18 @@ def _lay_out(
             segments=segments, near_gsd_cm=near_gsd, far_gsd_cm=far_gsd, centre_gsd_cm=gsd_cm,
         )  # fmt: skip
 
-    piece_passes: list[PassPlan] = []
-    # per piece: corridor line -> rows (each a tuple of segments), fill rows flagged
-    rows_of_piece: list[dict[int, list[tuple[bool, tuple[Segment, ...]]]]] = []
+    bearings: list[float] = []
+    firsts: list[float] = []
+    piece_segments: list[tuple[Segment, ...]] = []
     for i, piece in enumerate(layout.pieces_xy):
         bearing = _bearing_deg(coords[i], coords[i + 1])
         piece_area = _polygonal(piece.intersection(area_xy))
-        by_line: dict[int, list[tuple[bool, tuple[Segment, ...]]]] = {}
         segments: tuple[Segment, ...] = ()
+        _, vc_arr = ex.to_pass_frame(coords[i : i + 1, 0], coords[i : i + 1, 1], bearing)
+        v_first = float(vc_arr[0]) + offsets[0]
         if not piece_area.is_empty and piece_area.area > 1e-6:
             area_uv = _rotate(piece_area, bearing)
             blocked_uv = _rotate(blocked_xy, bearing) if blocked_xy is not None else None
-            _, vc_arr = ex.to_pass_frame(coords[i : i + 1, 0], coords[i : i + 1, 1], bearing)
-            v_first = float(vc_arr[0]) + offsets[0]
             lay = layout_pass(
                 area_uv, blocked_uv, rect, step_m, spacing_m, first_line_v_m=v_first, line_count=n_lines
             )
@@ -536,16 +535,30 @@ def _lay_out(
                     f"corridor segment {i + 1}: {lay.uncovered_m2:.0f} m2 beside exclusion zones cannot be "
                     f"seen without flying over them"
                 )
-            rows: dict[int, list[Segment]] = {}
-            for seg in segments:
-                rows.setdefault(seg.row, []).append(seg)
-            for row in sorted(rows, key=lambda r: rows[r][0].v_m):
-                segs = tuple(sorted(rows[row], key=lambda s: s.u_first_m))
-                k_real = (segs[0].v_m - v_first) / spacing_m
-                k = min(max(round(k_real), 0), n_lines - 1)
-                fill = abs(k_real - round(k_real)) > 1e-6 or not 0 <= round(k_real) < n_lines
-                by_line.setdefault(k, []).append((fill, segs))
-        piece_passes.append(pass_plan(i, f"corridor segment {i + 1}", bearing, segments))
+        bearings.append(bearing)
+        firsts.append(v_first)
+        piece_segments.append(segments)
+
+    # Three views where the forward overlap gives them along a line, else two (stereo).
+    need = 3 if 3.0 * trigger_m <= rect.along_m + 1e-9 else 2
+    piece_segments = trim_end_stations(
+        area_xy, bearings, piece_segments, rect, min(trigger_m, spacing_m), need
+    )
+    piece_passes: list[PassPlan] = []
+    # per piece: corridor line -> rows (each a tuple of segments), fill rows flagged
+    rows_of_piece: list[dict[int, list[tuple[bool, tuple[Segment, ...]]]]] = []
+    for i, segments in enumerate(piece_segments):
+        by_line: dict[int, list[tuple[bool, tuple[Segment, ...]]]] = {}
+        rows: dict[int, list[Segment]] = {}
+        for seg in segments:
+            rows.setdefault(seg.row, []).append(seg)
+        for row in sorted(rows, key=lambda r: rows[r][0].v_m):
+            segs = tuple(sorted(rows[row], key=lambda s: s.u_first_m))
+            k_real = (segs[0].v_m - firsts[i]) / spacing_m
+            k = min(max(round(k_real), 0), n_lines - 1)
+            fill = abs(k_real - round(k_real)) > 1e-6 or not 0 <= round(k_real) < n_lines
+            by_line.setdefault(k, []).append((fill, segs))
+        piece_passes.append(pass_plan(i, f"corridor segment {i + 1}", bearings[i], segments))
         rows_of_piece.append(by_line)
 
     run_passes: list[PassPlan] = []
@@ -576,31 +589,94 @@ def _lay_out(
     )  # fmt: skip
 
 
+def _sample(area_xy: Polygon | MultiPolygon, base_m: float) -> tuple[np.ndarray, float]:
+    """Points of the corridor: a jittered grid (cells of an eighth of ``base_m``) and its edges."""
+    points, cell = grid_points(area_xy, base_m / 8.0)
+    return np.vstack([points, boundary_points(area_xy, max(cell, 0.5))]), cell
+
+
+def _near(
+    points: np.ndarray, bearing: float, segments: tuple[Segment, ...], reach: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Indices of the points within ``reach`` of the segments' stations, and those points in the
+    segments' pass frame."""
+    pu, pv = ex.to_pass_frame(points[:, 0], points[:, 1], bearing)
+    u = np.array([[s.u_first_m, s.u_last_m] for s in segments])
+    v = np.array([s.v_m for s in segments])
+    near = (
+        (pu >= u.min() - reach) & (pu <= u.max() + reach) & (pv >= v.min() - reach) & (pv <= v.max() + reach)
+    )
+    idx = np.flatnonzero(near)
+    return idx, np.column_stack([pu[idx], pv[idx]])
+
+
+def trim_end_stations(
+    area_xy: Polygon | MultiPolygon,
+    bearings: list[float],
+    piece_segments: list[tuple[Segment, ...]],
+    rect: ex.FrameRectangle,
+    base_m: float,
+    need: int,
+) -> list[tuple[Segment, ...]]:
+    """Drop the end stations of runs whose frames only add views where the corridor already has
+    more than ``need`` (at a bend both segments' runs reach over the bisector: the views of one
+    make the other's end stations redundant). A station goes only if every sampled point of the
+    corridor in its frame keeps at least ``need`` views; the ends where a run continues another
+    (split runs) stay."""
+    points, _ = _sample(area_xy, base_m)
+    reach = math.hypot(rect.along_m, rect.across_m)
+    counts = np.zeros(len(points), np.int64)
+    local: list[tuple[np.ndarray, np.ndarray]] = []
+    for bearing, segments in zip(bearings, piece_segments, strict=True):
+        if not segments:
+            local.append((np.zeros(0, np.intp), np.zeros((0, 2))))
+            continue
+        idx, uv = _near(points, bearing, segments, reach)
+        counts[idx] += view_counts(uv, segments, rect)
+        local.append((idx, uv))
+    out: list[tuple[Segment, ...]] = []
+    for (idx, uv), segments in zip(local, piece_segments, strict=True):
+        kept: list[Segment] = []
+        for seg in segments:
+            for low_end in (True, False):
+                if seg.join_lo if low_end else seg.join_hi:
+                    continue
+                while seg.count > 1:
+                    du = uv[:, 0] - (seg.u_first_m if low_end else seg.u_last_m)
+                    dv = uv[:, 1] - seg.v_m
+                    inside = (
+                        (du >= rect.u_min_m)
+                        & (du <= rect.u_max_m)
+                        & (dv >= rect.v_min_m)
+                        & (dv <= rect.v_max_m)
+                    )
+                    seen = idx[inside]
+                    if np.any(counts[seen] - 1 < need):
+                        break
+                    counts[seen] -= 1
+                    seg = dataclasses.replace(
+                        seg,
+                        u_first_m=seg.u_first_m + (seg.spacing_m if low_end else 0.0),
+                        count=seg.count - 1,
+                    )
+            kept.append(seg)
+        out.append(tuple(kept))
+    return out
+
+
 def corridor_views(
     area_xy: Polygon | MultiPolygon, pieces: list[PassPlan], rect: ex.FrameRectangle, base_m: float
 ) -> ViewShares:
     """Shares of the corridor seen by >= 1, 2, 3 frames, counting the frames of every piece (a
     bend is seen by both its segments' frames): a jittered grid and the corridor's edges."""
-    points, cell = grid_points(area_xy, base_m / 8.0)
-    points = np.vstack([points, boundary_points(area_xy, max(cell, 0.5))])
+    points, cell = _sample(area_xy, base_m)
     counts = np.zeros(len(points), np.int64)
     reach = math.hypot(rect.along_m, rect.across_m)
     for pp in pieces:
         if not pp.segments:
             continue
-        u, v = (
-            np.array([[s.u_first_m, s.u_last_m] for s in pp.segments]),
-            np.array([s.v_m for s in pp.segments]),
-        )
-        pu, pv = ex.to_pass_frame(points[:, 0], points[:, 1], pp.direction_deg)
-        near = (
-            (pu >= u.min() - reach)
-            & (pu <= u.max() + reach)
-            & (pv >= v.min() - reach)
-            & (pv <= v.max() + reach)
-        )
-        idx = np.flatnonzero(near)
-        counts[idx] += view_counts(np.column_stack([pu[idx], pv[idx]]), pp.segments, rect)
+        idx, uv = _near(points, pp.direction_deg, pp.segments, reach)
+        counts[idx] += view_counts(uv, pp.segments, rect)
     n = max(1, len(counts))
     return ViewShares(
         seen_1_pct=100.0 * np.count_nonzero(counts >= 1) / n,

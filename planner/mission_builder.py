@@ -18,6 +18,7 @@ above ground.
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import math
 from dataclasses import dataclass, field
 
@@ -26,12 +27,12 @@ from numpy.typing import NDArray
 from shapely.geometry import Polygon
 
 from . import trigger as trig
+from .errors import PlanningError
 from .exposure import FrameRectangle, from_pass_frame, up_bearing_deg
 from .fixed_wing import FixedWing, loop_turn
 from .footprint import footprint_corners
 from .geo import LocalFrame
 from .lines import Segment
-from .errors import PlanningError
 from .mission import Autopilot, HomePosition, Mission, MissionItem, VehicleType
 from .plan import FlightLine, PassKind, Stations
 from .route import Router, boustrophedon, nearest_start, polyline_length_m
@@ -216,7 +217,7 @@ def build_mission(
                 loop = loop_turn(position, last_heading, pts["entry"], fixed_wing.radius_m)
                 if abs(abs(turn) - 180.0) < 1.0 and loop:
                     legs = [position, *loop]
-                    if not all(router.is_clear(a, b) for a, b in zip(legs, legs[1:], strict=False)):
+                    if not all(router.is_clear(a, b) for a, b in itertools.pairwise(legs)):
                         raise PlanningError(
                             f"a {fixed_wing.radius_m:.0f} m turn loop of the plane crosses an exclusion "
                             f"zone; give the zones more room, fly slower, or allow a steeper bank"

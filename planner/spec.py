@@ -310,6 +310,7 @@ def _parse_vehicle(value: Any, where: str) -> VehicleSpec:
     if takeoff > max_alt:
         raise SpecError(f"{section}: takeoff_alt_m = {takeoff} is above max_alt_agl_m = {max_alt}; lower it")
     return VehicleSpec(
+        **_parse_fixed_wing(value, vehicle_type, section),
         type=vehicle_type,
         home_lat_deg=home_lat,
         home_lon_deg=home_lon,
@@ -326,7 +327,6 @@ def _parse_vehicle(value: Any, where: str) -> VehicleSpec:
             1440.0,
             default=30.0 if vehicle_type is VehicleType.MULTIROTOR else 90.0,
         ),  # fmt: skip
-        **_parse_fixed_wing(value, vehicle_type, section),
     )
 
 
