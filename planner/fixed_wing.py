@@ -192,22 +192,30 @@ class FixedWing:
 
 def loop_turn(exit_xy: Point2, heading_deg: float, entry_xy: Point2, radius_m: float) -> list[Point2]:
     """Waypoints of the turn from a line left at ``exit_xy`` on grid bearing ``heading_deg`` to the
-    next line, entered at ``entry_xy`` on the opposite bearing; empty when the lines are at least
-    2 r apart (the autopilot's own turn fits). Otherwise a light-bulb loop of three arcs of
-    radius r: away from the next line, around over the top, and onto it (straight flight first
-    when the next line's entry lies ahead)."""
+    next line, entered at ``entry_xy`` on the opposite bearing.
+
+    Lines at least 2 r apart: two square corners (straight on first when the next line's entry
+    lies ahead), each of which the plane rounds with its radius. Closer lines: a light-bulb loop
+    of three arcs of radius r (away from the next line, around over the top, and onto it). An arc
+    is written as the vertices of the polygon circumscribed about it (every
+    :data:`LOOP_STEP_DEG` of arc): a plane that rounds each vertex with radius r flies the arc
+    itself, and each leg is exactly as long as the two roundings at its ends need."""
     h = math.radians(heading_deg)
     f = np.array([math.sin(h), math.cos(h)])
     right = np.array([math.cos(h), -math.sin(h)])
-    delta = np.asarray(entry_xy, float) - np.asarray(exit_xy, float)
+    start = np.asarray(exit_xy, float)
+    delta = np.asarray(entry_xy, float) - start
     lateral = float(delta @ right)
     ahead = float(delta @ f)
     d = abs(lateral)
     r = radius_m
+    base = start + max(ahead, 0.0) * f
     if d >= 2.0 * r - 1e-9:
-        return []
+        corners = [base + lateral * right]
+        if ahead > 1e-6:
+            corners.insert(0, base)
+        return [(float(p[0]), float(p[1])) for p in corners]
     side = 1.0 if lateral >= 0 else -1.0
-    base = np.asarray(exit_xy, float) + max(ahead, 0.0) * f
     # Local frame: x toward the next line, y forward; start (0, 0) heading +y, end (d, 0) heading -y.
     yb = math.sqrt(max(4.0 * r * r - (d / 2.0 + r) ** 2, 0.0))
     theta = math.atan2(yb, d / 2.0 + r)
@@ -219,9 +227,12 @@ def loop_turn(exit_xy: Point2, heading_deg: float, entry_xy: Point2, radius_m: f
     local: list[tuple[float, float]] = [(0.0, 0.0)] if ahead > 1e-6 else []
     for (cx, cy), a0, a1 in arcs:
         n = max(1, math.ceil(abs(a1 - a0) / math.radians(LOOP_STEP_DEG)))
-        for k in range(1, n + 1):
-            a = a0 + (a1 - a0) * k / n
-            local.append((cx + r * math.cos(a), cy + r * math.sin(a)))
+        step = (a1 - a0) / n
+        reach = r / math.cos(step / 2.0)  # vertices of the circumscribed polygon
+        for k in range(n):
+            a = a0 + (k + 0.5) * step
+            local.append((cx + reach * math.cos(a), cy + reach * math.sin(a)))
+    local.append((d, 0.0))
     out = []
     for x, y in local:
         p = base + side * x * right + y * f
@@ -236,6 +247,11 @@ def fixed_wing_for(spec: MissionSpec, speed_m_s: float, true_north_grid_deg: flo
     if vehicle.type is not VehicleType.FIXED_WING:
         return None
     where = f"{spec.source} [survey]"
+    if spec.survey.trigger.value == "hover":
+        raise SpecError(
+            f'{where}: trigger = "hover" needs a vehicle that can hover; a plane triggers by distance: '
+            f'use trigger = "distance"'
+        )
     check_survey_speed(speed_m_s, vehicle.airspeed_min_m_s, vehicle.airspeed_max_m_s, where)
     transit = spec.survey.transit_speed_m_s
     if transit is not None:

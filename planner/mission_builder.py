@@ -217,12 +217,13 @@ def build_mission(
                 loop = loop_turn(position, last_heading, pts["entry"], fixed_wing.radius_m)
                 if abs(abs(turn) - 180.0) < 1.0 and loop:
                     legs = [position, *loop]
-                    if not all(router.is_clear(a, b) for a, b in itertools.pairwise(legs)):
+                    clear = all(router.is_clear(a, b) for a, b in itertools.pairwise(legs))
+                    if not clear and len(loop) > 2:
                         raise PlanningError(
                             f"a {fixed_wing.radius_m:.0f} m turn loop of the plane crosses an exclusion "
                             f"zone; give the zones more room, fly slower, or allow a steeper bank"
                         )
-                    for p in loop:
+                    for p in loop if clear else []:  # square corners blocked: the transit goes around
                         waypoint(p)
             last_heading = heading
             # transit to the entry, around no-fly zones
