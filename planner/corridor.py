@@ -206,7 +206,9 @@ def corridor_layout(
     pieces: list[Polygon | MultiPolygon] = []
     taken: shapely.Geometry | None = None
     for i in range(len(tangents)):
-        region = shapely.box(*corridor.buffer(1.0).bounds)
+        # Near this segment only (round ends: the outside of a bend is near both segments) ...
+        region = LineString(coords[i : i + 2]).buffer(width_m / 2.0 + tolerance + 1.0, quad_segs=16)
+        # ... and between the bisectors of its two bends.
         if i > 0:
             region = region.intersection(_half_plane(coords[i], tangents[i - 1] + tangents[i], big))
         if i < len(tangents) - 1:
@@ -542,7 +544,7 @@ def _lay_out(
     # Three views where the forward overlap gives them along a line, else two (stereo).
     need = 3 if 3.0 * trigger_m <= rect.along_m + 1e-9 else 2
     piece_segments = trim_end_stations(
-        area_xy, bearings, piece_segments, rect, min(trigger_m, spacing_m), need
+        area_xy, bearings, piece_segments, rect, min(trigger_m, spacing_m), need, firsts, spacing_m, n_lines
     )
     piece_passes: list[PassPlan] = []
     # per piece: corridor line -> rows (each a tuple of segments), fill rows flagged
@@ -617,43 +619,59 @@ def trim_end_stations(
     rect: ex.FrameRectangle,
     base_m: float,
     need: int,
+    line_v_first_m: list[float],
+    spacing_m: float,
+    n_lines: int,
 ) -> list[tuple[Segment, ...]]:
-    """Drop the end stations of runs whose frames only add views where the corridor already has
-    more than ``need`` (at a bend both segments' runs reach over the bisector: the views of one
-    make the other's end stations redundant). A station goes only if every sampled point of the
-    corridor in its frame keeps at least ``need`` views; the ends where a run continues another
-    (split runs) stay."""
+    """Drop the end stations of runs that only repeat what the same corridor line already sees
+    from its run on the neighbouring segment (at a bend both runs of a line reach over the
+    bisector). A station of line k goes only if every sampled point of the corridor in its frame
+    and in line k's band (half a spacing either side, open on the corridor's outer sides) keeps
+    at least ``need`` views from line k's frames; the other lines' frames do not count, so the
+    side overlap stays as planned. Fill runs and the ends where a run continues another (split
+    runs) stay. ``line_v_first_m``: per piece, v of line 0 in the piece's frame."""
     points, _ = _sample(area_xy, base_m)
     reach = math.hypot(rect.along_m, rect.across_m)
-    counts = np.zeros(len(points), np.int64)
+
+    def line_of(i: int, seg: Segment) -> int | None:
+        k_real = (seg.v_m - line_v_first_m[i]) / spacing_m
+        k = round(k_real)
+        return k if abs(k_real - k) < 1e-6 and 0 <= k < n_lines and not seg.fill else None
+
+    counts = np.zeros((n_lines, len(points)), np.int64)
     local: list[tuple[np.ndarray, np.ndarray]] = []
-    for bearing, segments in zip(bearings, piece_segments, strict=True):
+    for i, (bearing, segments) in enumerate(zip(bearings, piece_segments, strict=True)):
         if not segments:
             local.append((np.zeros(0, np.intp), np.zeros((0, 2))))
             continue
         idx, uv = _near(points, bearing, segments, reach)
-        counts[idx] += view_counts(uv, segments, rect)
+        for k in range(n_lines):
+            of_k = tuple(s for s in segments if line_of(i, s) == k)
+            if of_k:
+                counts[k, idx] += view_counts(uv, of_k, rect)
         local.append((idx, uv))
     out: list[tuple[Segment, ...]] = []
-    for (idx, uv), segments in zip(local, piece_segments, strict=True):
+    for i, ((idx, uv), segments) in enumerate(zip(local, piece_segments, strict=True)):
         kept: list[Segment] = []
         for seg in segments:
+            k = line_of(i, seg)
+            if k is None:
+                kept.append(seg)
+                continue
+            dv = uv[:, 1] - seg.v_m
+            band = (dv >= (-math.inf if k == 0 else -spacing_m / 2.0)) & (
+                dv <= (math.inf if k == n_lines - 1 else spacing_m / 2.0)
+            )
+            band &= (dv >= rect.v_min_m) & (dv <= rect.v_max_m)
             for low_end in (True, False):
                 if seg.join_lo if low_end else seg.join_hi:
                     continue
                 while seg.count > 1:
                     du = uv[:, 0] - (seg.u_first_m if low_end else seg.u_last_m)
-                    dv = uv[:, 1] - seg.v_m
-                    inside = (
-                        (du >= rect.u_min_m)
-                        & (du <= rect.u_max_m)
-                        & (dv >= rect.v_min_m)
-                        & (dv <= rect.v_max_m)
-                    )
-                    seen = idx[inside]
-                    if np.any(counts[seen] - 1 < need):
+                    seen = idx[band & (du >= rect.u_min_m) & (du <= rect.u_max_m)]
+                    if np.any(counts[k, seen] - 1 < need):
                         break
-                    counts[seen] -= 1
+                    counts[k, seen] -= 1
                     seg = dataclasses.replace(
                         seg,
                         u_first_m=seg.u_first_m + (seg.spacing_m if low_end else 0.0),

@@ -136,6 +136,23 @@ def test_random_bent_corridors_are_seen_twice_to_the_edges(
     points = corridor_points(plan, xy, width, 3.0)
     counts = views(st_.footprint_xy_m, points)
     assert counts.min() >= 2, f"{int(np.sum(counts < 2))} corridor points seen by fewer than two frames"
+    # every corridor line is flown along the whole corridor: each point of its offset curve is
+    # seen by two frames of that line alone (the side overlap is the planned one everywhere)
+    lon_lat = np.asarray(lonlat(xy))
+    cx, cy = plan.frame.to_xy(lon_lat[:, 0], lon_lat[:, 1])
+    centre = LineString(np.column_stack([cx, cy]))
+    assert plan.summary.corridor is not None
+    for k, offset in enumerate(plan.summary.corridor["line_offsets_m"]):  # type: ignore[arg-type]
+        curve = centre.offset_curve(-offset, join_style="round") if abs(offset) > 1e-9 else centre
+        along = [
+            shapely.get_coordinates(part.interpolate(np.arange(1.0, part.length - 1.0, 2.0)))
+            for part in getattr(curve, "geoms", [curve])
+        ]
+        pts = np.vstack(along)
+        s_on = shapely.line_locate_point(centre, shapely.points(pts))
+        pts = pts[(s_on > 1.0) & (s_on < centre.length - 1.0)]  # within the flat ends
+        own = views(st_.footprint_xy_m[st_.line_index == k], pts)
+        assert own.min() >= 2, f"line {k} leaves {int(np.sum(own < 2))} points of its course unseen"
     # each camera-on run follows one segment of the centre line (each segment its own bearing)
     lon_lat = np.asarray(lonlat(xy))
     cx, cy = plan.frame.to_xy(lon_lat[:, 0], lon_lat[:, 1])
@@ -208,6 +225,31 @@ def test_bends_waste_no_photos_on_the_inside(tmp_path: Path) -> None:
     assert lines_s == lines_b
     # per line and bend: at most two photos more than the straight corridor
     assert n_bent <= n_straight + 2 * lines_b, (n_straight, n_bent)
+
+
+def test_a_long_meander_is_flown_line_by_line(tmp_path: Path) -> None:
+    """A 6 km centre line of 25 segments bending up to 35 degrees: as many lines as the width
+    needs, no extra rows, and photos about the lines' length over the air base."""
+    rng = np.random.default_rng(3)
+    heading, xy = 60.0, [(0.0, 0.0)]
+    for _ in range(25):
+        heading += float(rng.uniform(-35, 35))
+        length = float(rng.uniform(150, 350))
+        x, y = xy[-1]
+        xy.append(
+            (x + length * math.sin(math.radians(heading)), y + length * math.cos(math.radians(heading)))
+        )
+    assert LineString(xy).is_simple
+    write_line(tmp_path, xy)
+    plan = plan_survey(corridor_spec(tmp_path, 150.0))
+    corridor = plan.summary.corridor
+    assert corridor is not None
+    n = len(corridor["line_offsets_m"])  # type: ignore[arg-type]
+    assert n >= 2 and plan.summary.line_count == n
+    expected = n * LineString(xy).length / plan.summary.air_base_m
+    assert abs(len(plan.stations) - expected) < 0.1 * expected
+    # the flight: each line once along the corridor and home (no back-and-forth per segment)
+    assert plan.summary.flight_distance_m < (n + 1.5) * LineString(xy).length
 
 
 def test_a_corridor_narrower_than_a_frame_is_one_line(tmp_path: Path) -> None:
