@@ -654,10 +654,11 @@ def trim_end_stations(
     for i, ((idx, uv), segments) in enumerate(zip(local, piece_segments, strict=True)):
         kept: list[Segment] = []
         for seg in segments:
-            k = line_of(i, seg)
-            if k is None:
+            line = line_of(i, seg)
+            if line is None:
                 kept.append(seg)
                 continue
+            k = line
             dv = uv[:, 1] - seg.v_m
             band = (dv >= (-math.inf if k == 0 else -spacing_m / 2.0)) & (
                 dv <= (math.inf if k == n_lines - 1 else spacing_m / 2.0)
