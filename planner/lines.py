@@ -108,6 +108,8 @@ def layout_pass(
     *,
     end_stations: int = END_STATIONS,
     max_run_stations: int | None = None,
+    first_line_v_m: float | None = None,
+    line_count: int | None = None,
 ) -> PassLayout:
     """Place the lines and camera-on segments of one pass (see the module docstring).
 
@@ -123,6 +125,9 @@ def layout_pass(
     n_lines = max(1, math.ceil((span - across) / line_spacing_m - 1e-9) + 1)
     extra = (n_lines - 1) * line_spacing_m + across - span
     v0 = v_min - extra / 2.0 - rect.v_min_m
+    if first_line_v_m is not None and line_count is not None:
+        # Lines at given places (a corridor's offsets from its centre line, planner.corridor).
+        n_lines, v0 = line_count, first_line_v_m
     centre_offset = (rect.v_min_m + rect.v_max_m) / 2.0
     u_lo, u_hi = area_uv.bounds[0] - 1.0, area_uv.bounds[2] + 1.0
     prepared_blocked = blocked_uv

@@ -18,6 +18,7 @@ above ground.
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import math
 from dataclasses import dataclass, field
 
@@ -26,7 +27,9 @@ from numpy.typing import NDArray
 from shapely.geometry import Polygon
 
 from . import trigger as trig
+from .errors import PlanningError
 from .exposure import FrameRectangle, from_pass_frame, up_bearing_deg
+from .fixed_wing import FixedWing, loop_turn
 from .footprint import footprint_corners
 from .geo import LocalFrame
 from .lines import Segment
@@ -101,9 +104,12 @@ def build_mission(
     passes: list[PassPlan],
     zones_xy: tuple[Polygon, ...],
     true_north_grid_deg: float = 0.0,
+    fixed_wing: FixedWing | None = None,
 ) -> BuiltMission:
     """Items, stations and path for the passes in order. Geometry is in grid bearings;
-    headings in the stations and lines are reported as true bearings."""
+    headings in the stations and lines are reported as true bearings. With ``fixed_wing``
+    the lines are ordered, turned, entered and left as the plane can fly them, and the
+    mission takes off and lands as a plane does (planner.fixed_wing)."""
     survey = spec.survey
     vehicle = spec.vehicle
     clearance = survey.exclusion_clearance_m
@@ -116,7 +122,22 @@ def build_mission(
         return float(lat), float(lon)
 
     items: list[MissionItem] = [MissionItem.takeoff(home.lat_deg, home.lon_deg, vehicle.takeoff_alt_m)]
-    if vehicle.type is VehicleType.FIXED_WING:
+    turnaround_m = survey.turnaround_m
+    if fixed_wing is not None:
+        turnaround_m = max(turnaround_m, fixed_wing.lead_in_m)
+        first_entry = passes[0].segments[0] if passes and passes[0].segments else None
+        aim = home_xy
+        if first_entry is not None:
+            fx, fy = from_pass_frame(
+                np.array([first_entry.u_first_m]), np.array([first_entry.v_m]), passes[0].direction_deg
+            )
+            aim = (float(fx[0]), float(fy[0]))
+        t_lat, t_lon = to_lonlat(fixed_wing.takeoff_point(home_xy, aim))
+        items[0] = MissionItem(
+            command=items[0].command, param1=fixed_wing.takeoff_pitch_deg, param5=t_lat, param6=t_lon,
+            param7=vehicle.takeoff_alt_m,
+        )  # fmt: skip
+    elif vehicle.type is VehicleType.FIXED_WING:
         items[0] = MissionItem(
             command=items[0].command, param1=15.0, param5=home.lat_deg, param6=home.lon_deg,
             param7=vehicle.takeoff_alt_m,
@@ -153,6 +174,7 @@ def build_mission(
     transit_flags: list[bool] = []  # per leg of `path`: True when camera-off transit
     holds_s = 0.0
     position = home_xy
+    last_heading: float | None = None  # grid bearing of the last line flown (fixed-wing turns)
     columns = _Columns()
     lines: dict[int, tuple[FlightLine, ...]] = {}
     alt_sequence: list[float] = []  # the height of each pass flown, for the climbs in the time
@@ -183,15 +205,33 @@ def build_mission(
         entries = {}
         for k, s in enumerate(segs):
             for direction in (1, -1):
-                geo = _segment_points(s, direction, pp, survey.turnaround_m, router)
+                geo = _segment_points(s, direction, pp, turnaround_m, router)
                 entries[(k, direction)] = geo["entry"]
         reverse_rows, first_dir = nearest_start(row_list, entries, position)
-        order = boustrophedon(row_list, reverse_rows, first_dir)
+        if fixed_wing is not None:
+            row_v = [segs[r[0]].v_m for r in row_list]
+            order = fixed_wing.line_order(row_list, row_v, (reverse_rows, first_dir))
+        else:
+            order = boustrophedon(row_list, reverse_rows, first_dir)
         pass_lines: list[FlightLine] = []
         for k, direction in order:
             seg = dataclasses.replace(segs[k], direction=direction)
-            pts = _segment_points(seg, direction, pp, survey.turnaround_m, router)
+            pts = _segment_points(seg, direction, pp, turnaround_m, router)
             heading = (pp.direction_deg + (0.0 if direction > 0 else 180.0)) % 360.0
+            if fixed_wing is not None and last_heading is not None:
+                turn = _wrap180(heading - last_heading)
+                loop = loop_turn(position, last_heading, pts["entry"], fixed_wing.radius_m)
+                if abs(abs(turn) - 180.0) < 1.0 and loop:
+                    legs = [position, *loop]
+                    clear = all(router.is_clear(a, b) for a, b in itertools.pairwise(legs))
+                    if not clear and len(loop) > 2:
+                        raise PlanningError(
+                            f"a {fixed_wing.radius_m:.0f} m turn loop of the plane crosses an exclusion "
+                            f"zone; give the zones more room, fly slower, or allow a steeper bank"
+                        )
+                    for p in loop if clear else []:  # square corners blocked: the transit goes around
+                        waypoint(p)
+            last_heading = heading
             # transit to the entry, around no-fly zones
             for p in router.path(position, pts["entry"])[1:-1]:
                 waypoint(p)
@@ -260,10 +300,21 @@ def build_mission(
             columns.alt.append(np.full(n, alt))
         lines[pp.index] = tuple(pass_lines)
 
-    # home, around no-fly zones, then RTL
-    for p in router.path(position, home_xy)[1:-1]:
-        waypoint(p)
-    items.append(MissionItem.return_to_launch())
+    if fixed_wing is not None:
+        # to the approach point, around no-fly zones, then the landing sequence (planner.fixed_wing)
+        approach = fixed_wing.approach_point(home_xy, position)
+        for p in router.path(position, approach)[1:-1]:
+            waypoint(p)
+        items.extend(fixed_wing.landing_items(to_lonlat(approach), (home.lat_deg, home.lon_deg)))
+        path_s.append(path_s[-1] + math.dist(path[-1], approach))
+        path_item.append(None)  # the approach keeps its altitude (the glide slope's top)
+        path.append(approach)
+        transit_flags.append(True)
+    else:
+        # home, around no-fly zones, then RTL
+        for p in router.path(position, home_xy)[1:-1]:
+            waypoint(p)
+        items.append(MissionItem.return_to_launch())
     path_s.append(path_s[-1] + math.dist(path[-1], home_xy))
     path_item.append(None)
     path.append(home_xy)

@@ -144,6 +144,7 @@ class Summary:
     stereo_seen_3_target_pct: float = 0.0  # the share >= 3 the plan promises (0: overlap too low)
     warnings: tuple[str, ...] = ()
     terrain: dict[str, object] | None = None  # planner.terrain_follow.TerrainSummary, with a DEM
+    corridor: dict[str, object] | None = None  # planner.corridor: width, centre line, line offsets
 
     def as_dict(self) -> dict[str, object]:
         out: dict[str, object] = {}

@@ -89,6 +89,14 @@ class VehicleSpec:
     reserve_pct: float = 20.0
     reserve_s: float = 0.0
 
+    # Fixed wing (planner.fixed_wing): the turn radius follows from the speed and the bank limit.
+    bank_limit_deg: float = 30.0
+    airspeed_min_m_s: float = 9.0  # ArduPlane AIRSPEED_MIN default
+    airspeed_max_m_s: float = 22.0  # ArduPlane AIRSPEED_MAX default
+    takeoff_pitch_deg: float = 15.0  # NAV_TAKEOFF param1
+    landing_glide_slope_deg: float = 6.0
+    landing_heading_deg: float | None = None  # true bearing flown on the final approach; None: auto
+
     @property
     def usable_flight_s(self) -> float | None:
         """The longest sortie allowed: endurance less the reserve (None without endurance)."""
@@ -122,9 +130,11 @@ class MissionSpec:
     survey: SurveySpec
     vehicle: VehicleSpec
     terrain: TerrainSpec | None = None
+    #: A corridor survey (planner.corridor): the area file holds the centre line, this is its width.
+    corridor_width_m: float | None = None
 
 
-_TOP_KEYS = {"name", "area", "exclude", "camera", "survey", "vehicle", "terrain"}
+_TOP_KEYS = {"name", "area", "exclude", "camera", "survey", "vehicle", "terrain", "corridor_width_m"}
 _TERRAIN_KEYS = {
     "dem", "follow", "tolerance_m", "sample_spacing_m", "max_climb_rate_m_s", "max_descent_rate_m_s",
     "accept_overlap_loss",
@@ -141,6 +151,10 @@ _VEHICLE_KEYS = {
     "type", "home", "home_alt_amsl_m", "takeoff_alt_m", "max_alt_agl_m", "autopilot",
     "climb_rate_m_s", "max_flight_time_min", "endurance_s", "reserve_pct", "reserve_s",
     "battery_capacity_mah", "consumption_ma",
+}  # fmt: skip
+_FIXED_WING_KEYS = {
+    "bank_limit_deg", "airspeed_min_m_s", "airspeed_max_m_s", "takeoff_pitch_deg",
+    "landing_glide_slope_deg", "landing_heading_deg",
 }  # fmt: skip
 
 
@@ -191,6 +205,7 @@ def parse_spec(data: Mapping[str, Any], file: Path) -> MissionSpec:
     survey = _parse_survey(data.get("survey"), where)
     vehicle = _parse_vehicle(data.get("vehicle", {}), where)
     terrain = _parse_terrain(data["terrain"], base, where) if "terrain" in data else None
+    corridor_width = _opt_number(data, "corridor_width_m", where, 1.0, 10_000.0)
     return MissionSpec(
         name=name,
         source=file.resolve(),
@@ -201,6 +216,7 @@ def parse_spec(data: Mapping[str, Any], file: Path) -> MissionSpec:
         survey=survey,
         vehicle=vehicle,
         terrain=terrain,
+        corridor_width_m=corridor_width,
     )
 
 
@@ -324,7 +340,7 @@ def _parse_vehicle(value: Any, where: str) -> VehicleSpec:
     if not isinstance(value, dict):
         raise SpecError(f"{where}: [vehicle] must be a table")
     section = f"{where} [vehicle]"
-    _check_keys(value, _VEHICLE_KEYS, section, "[vehicle]")
+    _check_keys(value, _VEHICLE_KEYS | _FIXED_WING_KEYS, section, "[vehicle]")
     type_text = value.get("type", "multirotor")
     try:
         vehicle_type = VehicleType(type_text)
@@ -356,6 +372,7 @@ def _parse_vehicle(value: Any, where: str) -> VehicleSpec:
     if takeoff > max_alt:
         raise SpecError(f"{section}: takeoff_alt_m = {takeoff} is above max_alt_agl_m = {max_alt}; lower it")
     return VehicleSpec(
+        **_parse_fixed_wing(value, vehicle_type, section),
         type=vehicle_type,
         home_lat_deg=home_lat,
         home_lon_deg=home_lon,
@@ -400,6 +417,31 @@ def _endurance_s(value: Mapping[str, Any], section: str) -> float | None:
                 f"less than 30 s; check the figures (capacity in mAh, current in mA)"
             )
     return endurance
+
+
+def _parse_fixed_wing(value: Mapping[str, Any], vehicle_type: VehicleType, section: str) -> dict[str, Any]:
+    """The fixed-wing keys of [vehicle] (planner.fixed_wing), refused on other vehicles."""
+    given = sorted(set(value) & _FIXED_WING_KEYS)
+    if vehicle_type is not VehicleType.FIXED_WING:
+        if given:
+            raise SpecError(f'{section}: {", ".join(given)} only apply to type = "fixed_wing"; remove them')
+        return {}
+    from .fixed_wing import check_bank_limit, check_speed_band
+
+    bank = _number(value, "bank_limit_deg", section, -90.0, 90.0, default=30.0)
+    check_bank_limit(bank, section)
+    low = _number(value, "airspeed_min_m_s", section, 0.0, 100.0, default=9.0)
+    high = _number(value, "airspeed_max_m_s", section, 0.0, 100.0, default=22.0)
+    check_speed_band(low, high, section)
+    heading = _opt_number(value, "landing_heading_deg", section, -360.0, 360.0)
+    return {
+        "bank_limit_deg": bank,
+        "airspeed_min_m_s": low,
+        "airspeed_max_m_s": high,
+        "takeoff_pitch_deg": _number(value, "takeoff_pitch_deg", section, 5.0, 45.0, default=15.0),
+        "landing_glide_slope_deg": _number(value, "landing_glide_slope_deg", section, 2.0, 15.0, default=6.0),
+        "landing_heading_deg": None if heading is None else heading % 360.0,
+    }
 
 
 def _check_keys(data: Mapping[str, Any], valid: set[str], where: str, table: str) -> None:

@@ -29,6 +29,7 @@ from .area import build_area, check_area_size, load_polygons
 from .camera import Orientation
 from .coverage import ViewShares, view_shares
 from .errors import AreaError, PlanningError, SpecError
+from .fixed_wing import fixed_wing_for
 from .footprint import near_far_gsd_cm, tilted_gsd_cm
 from .geo import LocalFrame, geodesic_area_m2
 from .lines import layout_pass, split_run
@@ -64,6 +65,10 @@ def plan_survey(spec: MissionSpec) -> SurveyPlan:
             f'trigger = "distance" for a fixed-wing'
         )
 
+    if spec.corridor_width_m is not None:
+        from .corridor import plan_corridor
+
+        return plan_corridor(spec)
     polygons = load_polygons(spec.area_path)
     exclusions = [p for path in spec.exclude_paths for p in load_polygons(path)]
     return plan_polygons(spec, polygons, exclusions)
@@ -174,6 +179,7 @@ def plan_polygons(spec: MissionSpec, polygons: list[Polygon], exclusions: list[P
             passes=pass_plans,
             zones_xy=zones_xy,
             true_north_grid_deg=true_north_grid,
+            fixed_wing=fixed_wing_for(spec, speed_m_s, true_north_grid),
         )
         terrain_summary = None
         if spec.terrain is None or dem is None:

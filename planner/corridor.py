@@ -1,0 +1,705 @@
+"""Corridor surveys: a centre line (a road, a river, a pipeline) and a width.
+
+The corridor is every point within ``corridor_width_m / 2`` of the centre line (flat ends at its
+first and last point, round on the outside of bends). It is flown as lines parallel to the
+centre line:
+
+1. The centre line is simplified (Douglas-Peucker, tolerance a tenth of the width and at most
+   a fifth of the frame's width) so that each kept segment is flown as one straight run; the
+   lines must then cover the corridor's half-width plus that tolerance.
+2. Lines: the fewest n at the side-overlap spacing S whose frames span that width,
+   ``(n - 1) S + across >= width + 2 tolerance``, at fixed offsets from the centre line
+   (centred), the same offsets on every segment, so line k is one polyline along the whole
+   corridor (a width at or below one frame: a single line along the centre).
+3. Segments: the corridor is cut at the bisector of each bend into pieces, one per segment
+   (at a bend each side of the bisector is nearer its own segment). Each piece is laid out as a
+   block in its segment's frame (planner.lines.layout_pass with the corridor's fixed line
+   offsets): each line's photos span the piece where its band of the corridor lies, so on the
+   outside of a bend the runs reach past the bisector as far as the corridor does (no gap),
+   and on the inside they stop where the corridor's edge crosses the bisector (no photos over
+   the neighbour's piece but the end stations that give the bend its stereo views); exclusions,
+   fill runs for gaps and stereo at the edges are a block's (planner.lines).
+4. Order: line 0 along the corridor, line 1 back, and so on; within a piece each run is flown in
+   the direction its neighbour ends nearest (planner.mission_builder, one pass per run, whose
+   DO_SET_CAM_TRIGG_DIST is set for that run's own spacing).
+5. Terrain, speed checks, fixed-wing turns and the summary are a block's.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import logging
+import math
+import xml.etree.ElementTree as ET
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import shapely
+from shapely.geometry import LineString, MultiPolygon, Polygon
+
+from . import exposure as ex
+from . import trigger as trig
+from .area import _CRS84_NAMES, _iter_local, build_area, check_area_size, load_polygons
+from .coverage import ViewShares, boundary_points, grid_points, view_counts
+from .errors import AreaError, SpecError
+from .fixed_wing import fixed_wing_for
+from .footprint import near_far_gsd_cm
+from .geo import LocalFrame, geodesic_area_m2
+from .lines import Segment, layout_pass, split_run
+from .mission import HomePosition
+from .mission_builder import PassPlan, build_mission
+from .plan import FlightPass, PassKind, SurveyPlan
+from .spec import MissionSpec, TriggerMode
+
+log = logging.getLogger(__name__)
+
+#: Simplification tolerance of the centre line: this share of the width ...
+_SIMPLIFY_WIDTH_SHARE = 0.1
+#: ... and at most this share of the frame's width across the line.
+_SIMPLIFY_FRAME_SHARE = 0.2
+#: Plans over a DEM with following: re-spaced for the highest ground (as planner.survey).
+_TERRAIN_ATTEMPTS = 4
+
+
+@dataclasses.dataclass(frozen=True, kw_only=True)
+class CorridorLayout:
+    """The corridor as planned, in the local frame (metres)."""
+
+    centre_xy: LineString  # as given
+    flown_xy: LineString  # simplified: one straight run per segment
+    width_m: float
+    line_offsets_m: tuple[float, ...]  # right of the direction of the centre line
+    pieces_xy: tuple[Polygon | MultiPolygon, ...]  # the part of the corridor each segment flies
+
+
+def load_centreline(path: str | Path) -> list[tuple[float, float]]:
+    """The centre line of a corridor: the one LineString of a GeoJSON or KML file, lon/lat."""
+    file = Path(path)
+    if not file.is_file():
+        raise AreaError(f"corridor centre line {file} does not exist; check the area path in the spec")
+    suffix = file.suffix.lower()
+    lines: list[Any]
+    if suffix in (".geojson", ".json"):
+        lines = _geojson_lines(file)
+    elif suffix == ".kml":
+        lines = _kml_lines(file)
+    else:
+        raise AreaError(
+            f"corridor centre line {file}: unknown format {suffix!r}; give a GeoJSON (.geojson) or "
+            f"KML (.kml) LineString in WGS84"
+        )
+    if len(lines) != 1:
+        raise AreaError(
+            f"{file} holds {len(lines)} LineStrings; a corridor's area file holds exactly one, its "
+            f"centre line (corridor_width_m is set in the spec)"
+        )
+    points: list[tuple[float, float]] = []
+    for position in lines[0]:
+        if not isinstance(position, list | tuple) or len(position) < 2:
+            raise AreaError(f"{file}: the centre line has a position {position!r} that is not [lon, lat]")
+        lon, lat = float(position[0]), float(position[1])
+        if not (math.isfinite(lon) and math.isfinite(lat) and -180 <= lon <= 180 and -90 <= lat <= 90):
+            raise AreaError(
+                f"{file}: the centre line has a position ({lon}, {lat}) outside WGS84 lon/lat; export "
+                f"it in EPSG:4326"
+            )
+        if not points or (lon, lat) != points[-1]:
+            points.append((lon, lat))
+    if len(points) < 2:
+        raise AreaError(f"{file}: the centre line has fewer than two distinct positions; draw the corridor")
+    return points
+
+
+def _geojson_lines(file: Path) -> list[Any]:
+    try:
+        data = json.loads(file.read_text(encoding="utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as error:
+        raise AreaError(f"{file} is not valid GeoJSON: {error}") from None
+    crs = data.get("crs") if isinstance(data, dict) else None
+    if isinstance(crs, dict):
+        name = str(crs.get("properties", {}).get("name", ""))
+        if name and name not in _CRS84_NAMES:
+            raise AreaError(f"{file} declares CRS {name!r}; re-export the centre line in EPSG:4326")
+    out: list[Any] = []
+
+    def walk(node: Any) -> None:
+        if not isinstance(node, dict):
+            return
+        kind = node.get("type")
+        if kind == "FeatureCollection":
+            for feature in node.get("features") or []:
+                walk(feature)
+        elif kind == "Feature":
+            walk(node.get("geometry"))
+        elif kind == "GeometryCollection":
+            for g in node.get("geometries") or []:
+                walk(g)
+        elif kind == "LineString":
+            out.append(node.get("coordinates") or [])
+        elif kind == "MultiLineString":
+            out.extend(node.get("coordinates") or [])
+
+    walk(data)
+    return out
+
+
+def _kml_lines(file: Path) -> list[Any]:
+    try:
+        root = ET.fromstring(file.read_bytes())
+    except ET.ParseError as error:
+        raise AreaError(f"{file} is not valid KML: {error}") from None
+    out = []
+    for line in _iter_local(root, "LineString"):
+        text = next((e.text for e in _iter_local(line, "coordinates")), None) or ""
+        coords = []
+        for token in text.split():
+            parts = token.split(",")
+            try:
+                coords.append([float(parts[0]), float(parts[1])])
+            except (ValueError, IndexError):
+                raise AreaError(f"{file}: a centre line coordinate {token!r} is not lon,lat[,alt]") from None
+        out.append(coords)
+    return out
+
+
+def check_simple(line_xy: LineString, frame: LocalFrame, where: str) -> None:
+    """Refuse a centre line that crosses or touches itself, naming where."""
+    if line_xy.is_simple:
+        return
+    coords = np.asarray(line_xy.coords)
+    segments = [LineString(coords[i : i + 2]) for i in range(len(coords) - 1)]
+    tree = shapely.STRtree(segments)
+    for i, seg in enumerate(segments):
+        for j in tree.query(seg):
+            if j <= i + 1:
+                continue
+            hit = seg.intersection(segments[j])
+            if not hit.is_empty:
+                p = hit.representative_point()
+                lon, lat = frame.to_lonlat(p.x, p.y)
+                raise AreaError(
+                    f"{where}: the corridor's centre line crosses itself near lon {float(lon):.6f}, lat "
+                    f"{float(lat):.6f} (segments {i + 1} and {j + 1}); draw it without crossings, or plan "
+                    f"each side of the crossing as its own corridor"
+                )
+    raise AreaError(f"{where}: the corridor's centre line overlaps itself; draw it without going back on it")
+
+
+def corridor_layout(
+    centre_xy: LineString, width_m: float, across_m: float, spacing_m: float
+) -> CorridorLayout:
+    """Simplified centre line, line offsets and the pieces of the corridor (module docstring)."""
+    tolerance = min(_SIMPLIFY_WIDTH_SHARE * width_m, _SIMPLIFY_FRAME_SHARE * across_m)
+    flown = centre_xy.simplify(tolerance, preserve_topology=False)
+    if not isinstance(flown, LineString) or len(flown.coords) < 2 or not flown.is_simple:
+        flown, tolerance = centre_xy, 0.0
+    span = width_m + 2.0 * tolerance
+    n = max(1, math.ceil((span - across_m) / spacing_m - 1e-9) + 1)
+    offsets = tuple(-(n - 1) * spacing_m / 2.0 + k * spacing_m for k in range(n))
+    corridor = corridor_polygon(centre_xy, width_m)
+    coords = np.asarray(flown.coords)
+    tangents = np.diff(coords, axis=0)
+    tangents /= np.hypot(tangents[:, 0], tangents[:, 1])[:, None]
+    big = 4.0 * (flown.length + width_m) + 1000.0
+    pieces: list[Polygon | MultiPolygon] = []
+    taken: shapely.Geometry | None = None
+    for i in range(len(tangents)):
+        # Near this segment only (round ends: the outside of a bend is near both segments) ...
+        region = LineString(coords[i : i + 2]).buffer(width_m / 2.0 + tolerance + 1.0, quad_segs=16)
+        # ... and between the bisectors of its two bends.
+        if i > 0:
+            region = region.intersection(_half_plane(coords[i], tangents[i - 1] + tangents[i], big))
+        if i < len(tangents) - 1:
+            region = region.intersection(_half_plane(coords[i + 1], -(tangents[i] + tangents[i + 1]), big))
+        piece = corridor.intersection(region)
+        if taken is not None:
+            piece = piece.difference(taken)
+        taken = piece if taken is None else taken.union(piece)
+        pieces.append(_polygonal(piece))
+    rest = corridor.difference(taken) if taken is not None else corridor
+    for part in _polygonal(rest).geoms:
+        if part.area < 1e-6:
+            continue
+        k = int(
+            np.argmin([LineString(coords[i : i + 2]).distance(part.centroid) for i in range(len(tangents))])
+        )
+        pieces[k] = _polygonal(pieces[k].union(part))
+    return CorridorLayout(
+        centre_xy=centre_xy, flown_xy=flown, width_m=width_m, line_offsets_m=offsets, pieces_xy=tuple(pieces)
+    )
+
+
+def corridor_polygon(centre_xy: LineString, width_m: float) -> Polygon | MultiPolygon:
+    """Every point within half the width of the centre line, flat at its two ends."""
+    return centre_xy.buffer(width_m / 2.0, cap_style="flat", join_style="round", quad_segs=16)
+
+
+def _half_plane(point: np.ndarray, normal: np.ndarray, big: float) -> Polygon:
+    """The half plane {x : (x - point) . normal >= 0} within a box of half-size ``big``."""
+    n = normal / math.hypot(normal[0], normal[1])
+    t = np.array([-n[1], n[0]])
+    p = np.asarray(point, float)
+    corners = [p + t * big, p + t * big + n * big * 2, p - t * big + n * big * 2, p - t * big]
+    return Polygon(corners)
+
+
+def _polygonal(geom: shapely.Geometry) -> MultiPolygon:
+    parts = [g for g in getattr(geom, "geoms", [geom]) if isinstance(g, Polygon) and not g.is_empty]
+    parts += [p for g in getattr(geom, "geoms", [geom]) if isinstance(g, MultiPolygon) for p in g.geoms]
+    return MultiPolygon(parts)
+
+
+def _bearing_deg(a: np.ndarray, b: np.ndarray) -> float:
+    return math.degrees(math.atan2(b[0] - a[0], b[1] - a[1])) % 360.0
+
+
+def _rotate(geom: shapely.Geometry, direction_deg: float) -> shapely.Geometry:
+    def fn(c: np.ndarray) -> np.ndarray:
+        u, v = ex.to_pass_frame(c[:, 0], c[:, 1], direction_deg)
+        return np.column_stack([u, v])
+
+    return shapely.transform(geom, fn)
+
+
+def plan_corridor(spec: MissionSpec) -> SurveyPlan:
+    """Plan a corridor survey (module docstring). Raises SfapError subclasses with the fix."""
+    from .summary import limit_warnings, stereo_3_target_pct, summarize
+    from .survey import _default_home, _judge_terrain_overlaps, _read_dem
+    from .terrain_follow import apply_terrain
+
+    survey, vehicle, camera = spec.survey, spec.vehicle, spec.camera
+    width = spec.corridor_width_m
+    assert width is not None
+    where = str(spec.source)
+    if survey.crosshatch or survey.oblique:
+        raise SpecError(
+            f"{where}: a corridor is flown as nadir lines along its centre line; remove "
+            f"{'crosshatch' if survey.crosshatch else '[[survey.oblique]]'} from [survey] (corridor "
+            f"obliques are not planned: plan them as a block over the corridor's polygon)"
+        )
+    if survey.direction_deg is not None:
+        raise SpecError(
+            f'{where}: a corridor\'s lines follow its centre line; remove direction_deg (or "auto")'
+        )
+    points = load_centreline(spec.area_path)
+    lons, lats = zip(*points, strict=True)
+    frame = LocalFrame.utm_for(float(np.mean(lons)), float(np.mean(lats)))
+    if max(lons) - min(lons) > 180.0:
+        raise AreaError(
+            f"{spec.area_path}: the centre line crosses the antimeridian; split it at 180 degrees"
+        )
+    x, y = frame.to_xy(np.asarray(lons), np.asarray(lats))
+    centre_xy = LineString(np.column_stack([x, y]))
+    check_simple(centre_xy, frame, str(spec.area_path))
+
+    exclusions = [p for path in spec.exclude_paths for p in load_polygons(path)]
+    corridor_xy = corridor_polygon(centre_xy, width)
+    corridor_lonlat = frame.geometry_to_lonlat(corridor_xy)
+    area_lonlat, zones_lonlat = build_area([corridor_lonlat], exclusions)
+    if area_lonlat.is_empty:
+        raise SpecError(f"{spec.area_path}: nothing is left of the corridor once the exclusions are removed")
+    area_m2 = geodesic_area_m2(area_lonlat)
+    check_area_size(area_m2, str(spec.area_path))
+    area_xy = frame.geometry_to_xy(area_lonlat)
+    zones_xy = tuple(frame.geometry_to_xy(z) for z in zones_lonlat)
+    centroid = area_lonlat.centroid
+    true_north_grid = frame.true_north_grid_bearing_deg(centroid.x, centroid.y)
+
+    if survey.altitude_agl_m is not None:
+        alt_agl_m = survey.altitude_agl_m
+    else:
+        assert survey.gsd_cm is not None
+        alt_agl_m = camera.height_for_gsd_m(survey.gsd_cm)
+    if alt_agl_m > vehicle.max_alt_agl_m + 1e-9:
+        raise SpecError(
+            f"{where}: that GSD needs a flying height of {alt_agl_m:.1f} m above ground, above the "
+            f"vehicle limit max_alt_agl_m = {vehicle.max_alt_agl_m:g} m; ask for a finer gsd_cm (at most "
+            f"{camera.gsd_cm(vehicle.max_alt_agl_m):.2f} cm at the limit) or raise the limit"
+        )
+    gsd_cm = camera.gsd_cm(alt_agl_m)
+    if vehicle.home_lat_deg is not None and vehicle.home_lon_deg is not None:
+        home = HomePosition(
+            lat_deg=vehicle.home_lat_deg, lon_deg=vehicle.home_lon_deg, alt_amsl_m=vehicle.home_alt_amsl_m
+        )
+        hx, hy = frame.to_xy(home.lon_deg, home.lat_deg)
+        home_xy = (float(hx), float(hy))
+        if area_xy.distance(shapely.Point(home_xy)) > 50_000:
+            raise SpecError(
+                f"{where}: home is more than 50 km from the corridor; home is [lat, lon]: check the order"
+            )
+    else:
+        c0 = centre_xy.coords[0]
+        home_xy = (
+            (float(c0[0]), float(c0[1])) if area_xy.contains(shapely.Point(c0)) else _default_home(area_xy)
+        )
+        lon, lat = frame.to_lonlat(*home_xy)
+        home = HomePosition(lat_deg=float(lat), lon_deg=float(lon), alt_amsl_m=vehicle.home_alt_amsl_m)
+    for zone in zones_xy:
+        if zone.contains(shapely.Point(home_xy)):
+            raise SpecError(f"{where}: home lies inside an exclusion zone; move it out")
+    blocked_xy = (
+        shapely.union_all([z.buffer(survey.exclusion_clearance_m) for z in zones_xy]) if zones_xy else None
+    )
+
+    dem = _read_dem(spec, area_lonlat, home) if spec.terrain is not None else None
+    warnings: list[str] = []
+    scale = 1.0
+    terrain_summary = None
+    for _attempt in range(_TERRAIN_ATTEMPTS):
+        warnings.clear()
+        parts = _lay_out(spec, centre_xy, area_xy, blocked_xy, alt_agl_m, gsd_cm, scale, warnings)
+        layout, run_passes, piece_passes, speed_m_s, views, line_of_run, piece_of_run = parts
+        built = build_mission(
+            spec=spec,
+            frame=frame,
+            home=home,
+            home_xy=home_xy,
+            alt_agl_m=alt_agl_m,
+            speed_m_s=speed_m_s,
+            passes=run_passes,
+            zones_xy=zones_xy,
+            true_north_grid_deg=true_north_grid,
+            fixed_wing=fixed_wing_for(spec, speed_m_s, true_north_grid),
+        )
+        # Stations by piece (its frame, its lines) for the terrain's overlap figures.
+        run_of_station = built.stations.pass_index.copy()
+        built = dataclasses.replace(
+            built,
+            stations=dataclasses.replace(built.stations, pass_index=piece_of_run[run_of_station]),
+        )
+        if spec.terrain is None or dem is None:
+            break
+        built_t, home_t, terrain_summary = apply_terrain(
+            built, dem=dem, terrain=spec.terrain, frame=frame, home=home, home_xy=home_xy,
+            alt_agl_m=alt_agl_m, speed_m_s=speed_m_s, max_alt_agl_m=vehicle.max_alt_agl_m,
+            passes=piece_passes, camera=camera, footprint_scale=scale,
+        )  # fmt: skip
+        needed = terrain_summary.footprint_scale_min
+        if not spec.terrain.follow or needed >= scale - 1e-3:
+            break
+        scale = max(0.05, needed - 0.005)
+    if terrain_summary is not None:
+        built, home = built_t, home_t
+        _judge_terrain_overlaps(spec, terrain_summary, warnings)
+
+    # One pass for the writers: every run of the corridor, numbered by corridor line.
+    st = built.stations
+    stations = dataclasses.replace(
+        st, pass_index=np.zeros(len(st), np.int32), line_index=line_of_run[run_of_station]
+    )
+    lines = tuple(
+        dataclasses.replace(line, pass_index=0, line_index=int(line_of_run[pp.index]))
+        for pp in run_passes
+        for line in built.lines[pp.index]
+    )
+    first = piece_passes[0]
+    passes = (
+        FlightPass(
+            index=0,
+            kind=PassKind.NADIR,
+            name="corridor",
+            direction_deg=(first.direction_deg - true_north_grid) % 180.0,
+            tilt_deg=0.0,
+            look_heading_deg=None,
+            alt_agl_m=alt_agl_m,
+            line_spacing_m=first.line_spacing_m,
+            trigger_distance_m=first.trigger_distance_m,
+            lines=lines,
+            near_gsd_cm=first.near_gsd_cm,
+            far_gsd_cm=first.far_gsd_cm,
+        ),
+    )
+    if views.seen_2_pct < 100.0 - 1e-9:
+        warnings.append(f"{100.0 - views.seen_2_pct:.2f} % of the corridor is seen by fewer than two frames")
+    target3 = stereo_3_target_pct(first.trigger_distance_m, first.rect.along_m)
+    if views.seen_3_pct < target3:
+        warnings.append(
+            f"only {views.seen_3_pct:.1f} % of the corridor is seen by three or more frames "
+            f"(target {target3:g} %)"
+        )
+    warnings.extend(
+        limit_warnings(
+            autopilot=vehicle.autopilot,
+            item_count=len(built.mission.items),
+            flight_time_s=built.flight_time_s,
+            max_flight_time_min=vehicle.max_flight_time_min,
+        )
+    )
+    summary = summarize(
+        spec=spec, frame=frame, area_m2=area_m2, alt_agl_m=alt_agl_m, speed_m_s=speed_m_s, nadir=first,
+        passes=piece_passes, built=built, warnings=tuple(warnings), true_north_grid_deg=true_north_grid,
+        views=views, terrain=terrain_summary.as_dict() if terrain_summary is not None else None,
+    )  # fmt: skip
+    corridor_info: dict[str, object] = {
+        "width_m": width,
+        "centre_line_length_m": float(centre_xy.length),
+        "segment_count": len(layout.pieces_xy),
+        "line_offsets_m": list(layout.line_offsets_m),
+        "single_line": len(layout.line_offsets_m) == 1,
+    }
+    summary = dataclasses.replace(
+        summary, pass_count=1, line_count=int(line_of_run.max()) + 1 if len(line_of_run) else 0,
+        corridor=corridor_info,
+    )  # fmt: skip
+    for w in warnings:
+        log.warning(w)
+    return SurveyPlan(
+        name=spec.name,
+        camera=camera,
+        orientation=spec.orientation,
+        frame=frame,
+        area_xy=area_xy,
+        area_lonlat=area_lonlat,
+        exclusions_xy=zones_xy,
+        exclusions_lonlat=zones_lonlat,
+        home=home,
+        home_xy_m=home_xy,
+        passes=passes,
+        stations=stations,
+        path_xy_m=built.path_xy_m,
+        path_lonlat_deg=built.path_lonlat_deg,
+        mission=built.mission,
+        summary=summary,
+        warnings=tuple(warnings),
+    )
+
+
+def _lay_out(
+    spec: MissionSpec,
+    centre_xy: LineString,
+    area_xy: Polygon | MultiPolygon,
+    blocked_xy: shapely.Geometry | None,
+    alt_agl_m: float,
+    gsd_cm: float,
+    scale: float,
+    warnings: list[str],
+) -> tuple[CorridorLayout, list[PassPlan], list[PassPlan], float, ViewShares, np.ndarray, np.ndarray]:
+    """Runs of every piece; returns the layout, one PassPlan per run in flight order, one per
+    piece (all its runs), the speed, the corridor's view shares, and per run its corridor line
+    number and its piece."""
+    from .survey import _check_speed, _PassDef
+
+    survey, camera = spec.survey, spec.camera
+    assert spec.corridor_width_m is not None
+    hover = survey.trigger is TriggerMode.HOVER
+    flat = ex.frame_rectangle(camera, alt_agl_m, 0.0, ex.up_bearing_deg(0.0, spec.orientation), 0.0)
+    rect = ex.FrameRectangle(
+        u_min_m=flat.u_min_m * scale, u_max_m=flat.u_max_m * scale,
+        v_min_m=flat.v_min_m * scale, v_max_m=flat.v_max_m * scale,
+    )  # fmt: skip
+    trigger_m = ex.air_base_m(rect.along_m, survey.front_overlap_pct)
+    spacing_m = ex.air_base_m(rect.across_m, survey.side_overlap_pct)
+    pdef = _PassDef(
+        kind=PassKind.NADIR, name="corridor", direction_deg=0.0, tilt_deg=0.0, look_heading_deg=None,
+        front_overlap_pct=survey.front_overlap_pct, side_overlap_pct=survey.side_overlap_pct,
+    )  # fmt: skip
+    speed_m_s = _check_speed(spec, pdef, trigger_m, alt_agl_m, survey.speed_m_s, warnings)
+    layout = corridor_layout(centre_xy, spec.corridor_width_m, rect.across_m, spacing_m)
+    offsets = layout.line_offsets_m
+    n_lines = len(offsets)
+    coords = np.asarray(layout.flown_xy.coords)
+    step_m = trigger_m if hover else trig.station_step_m(trigger_m, speed_m_s)
+    near_gsd, far_gsd = near_far_gsd_cm(camera, alt_agl_m, 0.0)
+
+    def pass_plan(index: int, name: str, bearing: float, segments: tuple[Segment, ...]) -> PassPlan:
+        return PassPlan(
+            index=index, kind=PassKind.NADIR, name=name, direction_deg=bearing, tilt_deg=0.0,
+            look_heading_deg=None, rect=rect, trigger_distance_m=trigger_m, line_spacing_m=spacing_m,
+            segments=segments, near_gsd_cm=near_gsd, far_gsd_cm=far_gsd, centre_gsd_cm=gsd_cm,
+        )  # fmt: skip
+
+    bearings: list[float] = []
+    firsts: list[float] = []
+    piece_segments: list[tuple[Segment, ...]] = []
+    for i, piece in enumerate(layout.pieces_xy):
+        bearing = _bearing_deg(coords[i], coords[i + 1])
+        piece_area = _polygonal(piece.intersection(area_xy))
+        segments: tuple[Segment, ...] = ()
+        _, vc_arr = ex.to_pass_frame(coords[i : i + 1, 0], coords[i : i + 1, 1], bearing)
+        v_first = float(vc_arr[0]) + offsets[0]
+        if not piece_area.is_empty and piece_area.area > 1e-6:
+            area_uv = _rotate(piece_area, bearing)
+            blocked_uv = _rotate(blocked_xy, bearing) if blocked_xy is not None else None
+            lay = layout_pass(
+                area_uv, blocked_uv, rect, step_m, spacing_m, first_line_v_m=v_first, line_count=n_lines
+            )
+            segments = lay.segments
+            if not hover:
+                segments = tuple(
+                    part
+                    for seg in segments
+                    for part in split_run(seg, trig.max_run_stations(seg.spacing_m, speed_m_s))
+                )
+            if lay.uncovered_m2 > 0:
+                warnings.append(
+                    f"corridor segment {i + 1}: {lay.uncovered_m2:.0f} m2 beside exclusion zones cannot be "
+                    f"seen without flying over them"
+                )
+        bearings.append(bearing)
+        firsts.append(v_first)
+        piece_segments.append(segments)
+
+    # Three views where the forward overlap gives them along a line, else two (stereo).
+    need = 3 if 3.0 * trigger_m <= rect.along_m + 1e-9 else 2
+    piece_segments = trim_end_stations(
+        area_xy, bearings, piece_segments, rect, min(trigger_m, spacing_m), need, firsts, spacing_m, n_lines
+    )
+    piece_passes: list[PassPlan] = []
+    # per piece: corridor line -> rows (each a tuple of segments), fill rows flagged
+    rows_of_piece: list[dict[int, list[tuple[bool, tuple[Segment, ...]]]]] = []
+    for i, segments in enumerate(piece_segments):
+        by_line: dict[int, list[tuple[bool, tuple[Segment, ...]]]] = {}
+        rows: dict[int, list[Segment]] = {}
+        for seg in segments:
+            rows.setdefault(seg.row, []).append(seg)
+        for row in sorted(rows, key=lambda r: rows[r][0].v_m):
+            segs = tuple(sorted(rows[row], key=lambda s: s.u_first_m))
+            k_real = (segs[0].v_m - firsts[i]) / spacing_m
+            k = min(max(round(k_real), 0), n_lines - 1)
+            fill = abs(k_real - round(k_real)) > 1e-6 or not 0 <= round(k_real) < n_lines
+            by_line.setdefault(k, []).append((fill, segs))
+        piece_passes.append(pass_plan(i, f"corridor segment {i + 1}", bearings[i], segments))
+        rows_of_piece.append(by_line)
+
+    run_passes: list[PassPlan] = []
+    line_of_run: list[int] = []
+    piece_of_run: list[int] = []
+    fill_numbers: dict[tuple[int, int], int] = {}
+    n_pieces = len(layout.pieces_xy)
+    for k in range(n_lines):
+        order = range(n_pieces) if k % 2 == 0 else range(n_pieces - 1, -1, -1)
+        for i in order:
+            for j, (fill, segs) in enumerate(rows_of_piece[i].get(k, [])):
+                number = k
+                if fill:
+                    number = fill_numbers.setdefault((i, k * 1000 + j), n_lines + len(fill_numbers))
+                run_passes.append(
+                    pass_plan(
+                        len(run_passes), f"corridor line {number + 1}", piece_passes[i].direction_deg, segs
+                    )
+                )
+                line_of_run.append(number)
+                piece_of_run.append(i)
+    if not run_passes:
+        raise SpecError(f"{spec.source}: no line of the corridor can be flown (the exclusions cover it)")
+    views = corridor_views(area_xy, piece_passes, rect, min(trigger_m, spacing_m))
+    return (
+        layout, run_passes, piece_passes, speed_m_s, views,
+        np.asarray(line_of_run, np.int32), np.asarray(piece_of_run, np.int32),
+    )  # fmt: skip
+
+
+def _sample(area_xy: Polygon | MultiPolygon, base_m: float) -> tuple[np.ndarray, float]:
+    """Points of the corridor: a jittered grid (cells of an eighth of ``base_m``) and its edges."""
+    points, cell = grid_points(area_xy, base_m / 8.0)
+    return np.vstack([points, boundary_points(area_xy, max(cell, 0.5))]), cell
+
+
+def _near(
+    points: np.ndarray, bearing: float, segments: tuple[Segment, ...], reach: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Indices of the points within ``reach`` of the segments' stations, and those points in the
+    segments' pass frame."""
+    pu, pv = ex.to_pass_frame(points[:, 0], points[:, 1], bearing)
+    u = np.array([[s.u_first_m, s.u_last_m] for s in segments])
+    v = np.array([s.v_m for s in segments])
+    near = (
+        (pu >= u.min() - reach) & (pu <= u.max() + reach) & (pv >= v.min() - reach) & (pv <= v.max() + reach)
+    )
+    idx = np.flatnonzero(near)
+    return idx, np.column_stack([pu[idx], pv[idx]])
+
+
+def trim_end_stations(
+    area_xy: Polygon | MultiPolygon,
+    bearings: list[float],
+    piece_segments: list[tuple[Segment, ...]],
+    rect: ex.FrameRectangle,
+    base_m: float,
+    need: int,
+    line_v_first_m: list[float],
+    spacing_m: float,
+    n_lines: int,
+) -> list[tuple[Segment, ...]]:
+    """Drop the end stations of runs that only repeat what the same corridor line already sees
+    from its run on the neighbouring segment (at a bend both runs of a line reach over the
+    bisector). A station of line k goes only if every sampled point of the corridor in its frame
+    and in line k's band (half a spacing either side, open on the corridor's outer sides) keeps
+    at least ``need`` views from line k's frames; the other lines' frames do not count, so the
+    side overlap stays as planned. Fill runs and the ends where a run continues another (split
+    runs) stay. ``line_v_first_m``: per piece, v of line 0 in the piece's frame."""
+    points, _ = _sample(area_xy, base_m)
+    reach = math.hypot(rect.along_m, rect.across_m)
+
+    def line_of(i: int, seg: Segment) -> int | None:
+        k_real = (seg.v_m - line_v_first_m[i]) / spacing_m
+        k = round(k_real)
+        return k if abs(k_real - k) < 1e-6 and 0 <= k < n_lines and not seg.fill else None
+
+    counts = np.zeros((n_lines, len(points)), np.int64)
+    local: list[tuple[np.ndarray, np.ndarray]] = []
+    for i, (bearing, segments) in enumerate(zip(bearings, piece_segments, strict=True)):
+        if not segments:
+            local.append((np.zeros(0, np.intp), np.zeros((0, 2))))
+            continue
+        idx, uv = _near(points, bearing, segments, reach)
+        for k in range(n_lines):
+            of_k = tuple(s for s in segments if line_of(i, s) == k)
+            if of_k:
+                counts[k, idx] += view_counts(uv, of_k, rect)
+        local.append((idx, uv))
+    out: list[tuple[Segment, ...]] = []
+    for i, ((idx, uv), segments) in enumerate(zip(local, piece_segments, strict=True)):
+        kept: list[Segment] = []
+        for seg in segments:
+            line = line_of(i, seg)
+            if line is None:
+                kept.append(seg)
+                continue
+            k = line
+            dv = uv[:, 1] - seg.v_m
+            band = (dv >= (-math.inf if k == 0 else -spacing_m / 2.0)) & (
+                dv <= (math.inf if k == n_lines - 1 else spacing_m / 2.0)
+            )
+            band &= (dv >= rect.v_min_m) & (dv <= rect.v_max_m)
+            for low_end in (True, False):
+                if seg.join_lo if low_end else seg.join_hi:
+                    continue
+                while seg.count > 1:
+                    du = uv[:, 0] - (seg.u_first_m if low_end else seg.u_last_m)
+                    seen = idx[band & (du >= rect.u_min_m) & (du <= rect.u_max_m)]
+                    if np.any(counts[k, seen] - 1 < need):
+                        break
+                    counts[k, seen] -= 1
+                    seg = dataclasses.replace(
+                        seg,
+                        u_first_m=seg.u_first_m + (seg.spacing_m if low_end else 0.0),
+                        count=seg.count - 1,
+                    )
+            kept.append(seg)
+        out.append(tuple(kept))
+    return out
+
+
+def corridor_views(
+    area_xy: Polygon | MultiPolygon, pieces: list[PassPlan], rect: ex.FrameRectangle, base_m: float
+) -> ViewShares:
+    """Shares of the corridor seen by >= 1, 2, 3 frames, counting the frames of every piece (a
+    bend is seen by both its segments' frames): a jittered grid and the corridor's edges."""
+    points, cell = _sample(area_xy, base_m)
+    counts = np.zeros(len(points), np.int64)
+    reach = math.hypot(rect.along_m, rect.across_m)
+    for pp in pieces:
+        if not pp.segments:
+            continue
+        idx, uv = _near(points, pp.direction_deg, pp.segments, reach)
+        counts[idx] += view_counts(uv, pp.segments, rect)
+    n = max(1, len(counts))
+    return ViewShares(
+        seen_1_pct=100.0 * np.count_nonzero(counts >= 1) / n,
+        seen_2_pct=100.0 * np.count_nonzero(counts >= 2) / n,
+        seen_3_pct=100.0 * np.count_nonzero(counts >= 3) / n,
+        cell_m=cell,
+    )
