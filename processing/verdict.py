@@ -227,8 +227,8 @@ def overlap_warnings(
         factor = _overlap_factor(forward_overlap_pct.median, t.recommended_forward_overlap_pct)
         out.append(
             f"median forward overlap {forward_overlap_pct.median:.0f} % is below the "
-            f"{t.recommended_forward_overlap_pct:g} % recommended for SfM (the {t.min_forward_overlap_pct:g} % "
-            f"stereo minimum is met); next time, "
+            f"{t.recommended_forward_overlap_pct:g} % recommended for SfM (the "
+            f"{t.min_forward_overlap_pct:g} % stereo minimum is met); next time, "
             + _trigger_advice(steps, factor, f"{t.recommended_forward_overlap_pct:g} % endlap")
         )
     if side_overlap_pct is not None and (
@@ -312,7 +312,8 @@ def judge(
     if forward_overlap_pct is not None and forward_overlap_pct.median < t.min_forward_overlap_pct:
         factor = _overlap_factor(forward_overlap_pct.median, t.recommended_forward_overlap_pct)
         reasons.append(
-            f"median forward overlap (endlap) of consecutive frames of a line {forward_overlap_pct.median:.0f} % "
+            "median forward overlap (endlap) of consecutive frames of a line "
+            f"{forward_overlap_pct.median:.0f} % "
             f"(10-90 %: {forward_overlap_pct.p10:.0f}-{forward_overlap_pct.p90:.0f} % over "
             f"{forward_overlap_pct.count} pairs) is below the {t.min_forward_overlap_pct:g} % a stereo block "
             "needs: frames do not tie to their neighbours on the line (ground seen 3 times by crossing "

@@ -241,6 +241,11 @@ def test_garfield_images(garfield_result: CheckResult) -> None:
     assert any(x.startswith("median forward overlap (endlap)") and "below the 60 %" in x for x in r.reasons)
     assert any("base-height ratio of consecutive frames of a line" in x for x in r.reasons)
     assert not any("motion blur" in x for x in r.reasons)
+    # Pairs of passes minutes apart overlap with short bases (B/H 0.1-0.4 across lines) and cover
+    # all of it; the pairs that tie each line together, consecutive frames, are mostly too wide.
+    assert r.base_height_across_lines is not None and r.base_height_across_lines.median < 0.54
+    assert r.good_pair_pct is not None and r.good_pair_pct < r.thresholds.min_good_pair_pct
+    assert any("pair (consecutive frames of a line)" in x for x in r.reasons)
     assert any("motion blur above 0.5 px" in w for w in r.warnings)
     assert r.blur_px is not None and 1.4 < np.nanmax(r.blur_px) < r.thresholds.fail_blur_px
     blurred = [f for f in r.flagged if f.kind == "blur"]

@@ -80,7 +80,15 @@ OVERLAP_RELAXED = (
 def check(folder: Path, *args: str) -> tuple[int, str]:
     result = CliRunner().invoke(
         cli,
-        ["check", str(folder), "--ground-elevation-m", str(GROUND_M), "--no-progress", *OVERLAP_RELAXED, *args],
+        [
+            "check",
+            str(folder),
+            "--ground-elevation-m",
+            str(GROUND_M),
+            "--no-progress",
+            *OVERLAP_RELAXED,
+            *args,
+        ],
     )
     return result.exit_code, result.output
 

@@ -165,7 +165,8 @@ def test_the_advice_gives_the_trigger_distance_and_speed_for_the_recommended_end
     """Eq. 3-5 and 3-6 (REFERENCES.md section 1), by hand: 60 m between frames at 40 % endlap is a
     100 m footprint along the track; 75 % endlap needs a base of 25 m, and at the same 5 s interval
     5 m/s instead of 12. 72 m between lines at 28 % side overlap is a 100 m wide footprint: 60 %
-    needs lines 40 m apart. B/H 0.675 at 60 m: B/H 0.54 needs 48 m; the intersection angle is 2 atan(B / 2H)."""
+    needs lines 40 m apart. B/H 0.675 at 60 m: B/H 0.54 needs 48 m; the intersection angle is
+    2 atan(B / 2H)."""
     steps = LineSteps(base_m=60.0, interval_s=5.0, spacing_m=72.0)
     forward = _judge(forward_overlap_pct=_flat(40.0), steps=steps)
     assert "trigger distance of at most 25.0 m (now 60.0 m)" in forward[0]
