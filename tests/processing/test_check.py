@@ -344,7 +344,8 @@ def test_report_folder(garfield_result: CheckResult, tmp_path: Path) -> None:
     assert sorted(p.name for p in written) == sorted(REPORT_FILES)
     assert all(p.is_file() for p in written)
     data = json.loads((out / "report.json").read_text())
-    assert data["verdict"] == "pass" and data["exit_code"] == 0 and data["reasons"] == list(r.reasons)
+    assert data["verdict"] == "fail" and data["exit_code"] == 1 and data["reasons"] == list(r.reasons)
+    assert data["stereo"]["good_pair_basis"] == "consecutive frames of a line"
     assert data["frames"]["count"] == 28 and data["frames"]["camera_id"] == "parrot-sequoia-rgb"
     assert data["coverage"]["seen_by_at_least_pct"]["1"] == r.seen_pct[1]
     assert len(data["per_frame"]) == 28
@@ -380,7 +381,8 @@ def test_report_folder(garfield_result: CheckResult, tmp_path: Path) -> None:
         assert written.symmetric_difference(shapely.Polygon(ring)).area < 1e-8 * written.length
     assert json.loads((out / "gaps.geojson").read_text())["features"] == []
     page = (out / "report.html").read_text()
-    assert page.index("PASS") < page.index("Key figures")  # the verdict first
+    assert page.index("FAIL") < page.index("Key figures")  # the verdict first
+    assert page.index("median forward overlap (endlap)") < page.index("Key figures")  # and its reasons
     for name in ("view_count.png", "gaps.png", "gsd.png", "base_height.png"):
         assert f'src="{name}"' in page
         image = imread(out / name)
