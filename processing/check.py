@@ -183,7 +183,7 @@ class CheckResult:
     unpositioned: tuple[str, ...] = ()
     left_out: tuple[tuple[str, str], ...] = ()
     camera_source: str = ""
-    good_pair_basis: str = "two frames of the same line"
+    good_pair_basis: str = "frames on one line or neighbouring lines"
     stats: dict[str, Any] = field(default_factory=dict)
 
     @property
@@ -761,15 +761,16 @@ def _stereo(
     lo, hi = thresholds.min_base_height_ratio, thresholds.max_base_height_ratio
     classes = np.full(grid.shape, STEREO_NONE, dtype=np.int8)
     good_pct: float | None = None
-    # The stereo that holds a block together is along its lines: two frames of the same line
-    # (consecutive ones, or further apart when the endlap is high and consecutive bases are
-    # short). Pairs of passes flown minutes apart over the same ground (crossing lines, a sparse
-    # subset) overlap with short bases too, and would call a block good that no matcher ties
-    # along its lines. Without two overlapping frames on any line (no order to the frames) every
+    # The pairs that carry a block's stereo: two frames of the same line (consecutive ones, or
+    # further apart when the endlap is high and consecutive bases are short) and a frame with the
+    # nearest frame of a neighbouring line (the sidelap; at the ends of the lines the only pair).
+    # Not every overlapping pair: frames two lines apart or diagonal would call ground good that
+    # no matcher ties through neighbours. Without such pairs (no order to the frames) every
     # overlapping pair counts, and the basis says so.
     same_line = lines[pairs.i] == lines[pairs.j]
-    basis = same_line if same_line.any() else np.ones(len(pairs), dtype=bool)
-    basis_text = "two frames of the same line" if same_line.any() else "any two overlapping frames"
+    kinds = same_line | across
+    basis = kinds if kinds.any() else np.ones(len(pairs), dtype=bool)
+    basis_text = "frames on one line or neighbouring lines" if kinds.any() else "any two overlapping frames"
     if basis.any():
         # Later classes win: a cell with any good pair is good, else wide, else weak.
         good = good_base_height(bh, thresholds) & basis
@@ -832,9 +833,10 @@ def _stereo(
                 "capture interval); their blur is not judged"
             )
     warnings: list[str] = []
-    if len(pairs) and not same_line.any():
+    if len(pairs) and not kinds.any():
         warnings.append(
-            "no two overlapping frames on a flight line (no capture times, or frames too far apart): "
+            "no two overlapping frames on one flight line or neighbouring ones (no capture times, or "
+            "frames too far apart): "
             "the stereo share is judged on any two overlapping frames"
         )
     scale_count = sum(1 for f in flagged if f.kind == "scale")

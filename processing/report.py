@@ -307,8 +307,8 @@ def gsd_png(result: CheckResult) -> bytes:
 
 def base_height_png(result: CheckResult) -> bytes:
     """The best pair seeing each cell, in three classes of base-height ratio (weak, good,
-    wide); the pairs are those the stereo share counts (``result.good_pair_basis``: two frames
-    of the same line when there are any)."""
+    wide); the pairs are those the stereo share counts (``result.good_pair_basis``: frames on
+    one line or neighbouring lines when there are any)."""
     t = result.thresholds
     m = _Map(
         result,

@@ -70,12 +70,13 @@ class Thresholds:
       above 0.54 (30 deg of intersection) matching gets hard (Wenzel et al. 2013); below 0.1
       (5.7 deg) depth precision sigma_Z = (H/B)(H/f) sigma_image is ten times worse than the
       height error of the plan's pixel.
-    - ``min_good_pair_pct``: share of the area seen by at least one pair of frames of the same
-      line with B/H in that range (90 %). Pairs along a line, not every overlapping pair: frames
-      of passes flown minutes apart over the same ground (crossing lines, a sparse subset of a
-      flight) overlap with short bases too, but a block is matched along its lines first; at 50 %
-      endlap or more every point of a line's strip lies in a consecutive pair, and at a high
-      endlap (consecutive B/H under 0.1) frames further apart on the line give the base.
+    - ``min_good_pair_pct``: share of the area seen by at least one pair in that range (90 %), among
+      the pairs that carry a block's stereo: two frames of the same line (consecutive ones, or
+      further apart when a high endlap makes consecutive bases short) and a frame with the
+      nearest frame of a neighbouring line; not frames two lines apart or diagonal pairs. This
+      share is about the geometry of the pairs; whether consecutive frames overlap enough to be
+      matched at all is the forward overlap rule's (a sparse subset of passes minutes apart can
+      have good across-line pairs everywhere and still fall apart).
     - ``max_scale_difference_pct``: image scales differing by more than 10 % hamper matching
       (REFERENCES.md section 1): such frames are flagged (a warning).
     - ``max_gap_area_m2``: any gap larger than this fails, whatever the share seen (25 m2: a
@@ -213,7 +214,7 @@ def overlap_warnings(
     forward_overlap_pct: Distribution | None,
     side_overlap_pct: Distribution | None,
     steps: LineSteps | None = None,
-    good_pair_basis: str = "two frames of the same line",
+    good_pair_basis: str = "frames on one line or neighbouring lines",
 ) -> tuple[str, ...]:
     """Overlaps at or above the failure floor but below the recommended level, and an overlap
     that could not be measured, as warnings (they do not fail the check)."""
@@ -259,7 +260,7 @@ def judge(
     blurred_frames: Sequence[tuple[str, float]] = (),
     base_height_along_line: Distribution | None = None,
     steps: LineSteps | None = None,
-    good_pair_basis: str = "two frames of the same line",
+    good_pair_basis: str = "frames on one line or neighbouring lines",
 ) -> tuple[str, ...]:
     """The reasons a check fails, each with the figure, the threshold and what it means;
     empty when it passes.

@@ -241,11 +241,10 @@ def test_garfield_images(garfield_result: CheckResult) -> None:
     assert any(x.startswith("median forward overlap (endlap)") and "below the 60 %" in x for x in r.reasons)
     assert any("base-height ratio of consecutive frames of a line" in x for x in r.reasons)
     assert not any("motion blur" in x for x in r.reasons)
-    # Pairs of passes minutes apart overlap with short bases (B/H 0.1-0.4 across lines) and cover
-    # all of it; the pairs that tie each line together, frames of the same line, are mostly too wide.
+    # Passes minutes apart overlap with short bases (B/H 0.1-0.4 across lines) and cover all of it
+    # with good pairs: what breaks the block is the endlap along its lines, not that share.
     assert r.base_height_across_lines is not None and r.base_height_across_lines.median < 0.54
-    assert r.good_pair_pct is not None and r.good_pair_pct < r.thresholds.min_good_pair_pct
-    assert any("pair (two frames of the same line)" in x for x in r.reasons)
+    assert r.good_pair_pct is not None and r.good_pair_pct >= r.thresholds.min_good_pair_pct
     assert any("motion blur above 0.5 px" in w for w in r.warnings)
     assert r.blur_px is not None and 1.4 < np.nanmax(r.blur_px) < r.thresholds.fail_blur_px
     blurred = [f for f in r.flagged if f.kind == "blur"]
@@ -258,8 +257,9 @@ def test_garfield_images(garfield_result: CheckResult) -> None:
 def test_a_high_endlap_block_has_its_stereo_from_frames_further_apart(tmp_path: Path) -> None:
     """92 % endlap with the Sequoia (sensor 4.63 mm along the track, f 4.88 mm): consecutive frames
     have B/H 0.08 x 0.949 = 0.076 (REFERENCES.md section 1), under the 0.1 of a good pair, but the
-    frames two and more apart on the line give 0.15-0.5: the block passes on stereo; judging
-    consecutive pairs alone would fail it."""
+    frames two and more apart on the line (0.15-0.5) and the neighbouring lines' (0.3 x 6.175 /
+    4.88 = 0.38) are good: the block passes on stereo; judging consecutive pairs alone would fail
+    it."""
     spec = parse_spec(
         {
             "name": "high-endlap",
@@ -377,7 +377,7 @@ def test_report_folder(garfield_result: CheckResult, tmp_path: Path) -> None:
     assert all(p.is_file() for p in written)
     data = json.loads((out / "report.json").read_text())
     assert data["verdict"] == "fail" and data["exit_code"] == 1 and data["reasons"] == list(r.reasons)
-    assert data["stereo"]["good_pair_basis"] == "two frames of the same line"
+    assert data["stereo"]["good_pair_basis"] == "frames on one line or neighbouring lines"
     assert data["frames"]["count"] == 28 and data["frames"]["camera_id"] == "parrot-sequoia-rgb"
     assert data["coverage"]["seen_by_at_least_pct"]["1"] == r.seen_pct[1]
     assert len(data["per_frame"]) == 28
