@@ -61,10 +61,10 @@ class Thresholds:
       Wackrow and Chandler 2014, "Motion blur disturbs", The Photogrammetric Record 29(148), see
       the loss grow with blur of a few pixels; no published cut-off is sharper). The 28-frame
       subset of the OpenDroneMap test flight garfield in ../shared/data (Parrot Sequoia, blur
-      1.5-1.8 px) does not reconstruct whole (COLMAP registers 12 of its 28 frames in the largest
-      model), but the check does not need blur to explain it: its 37 % endlap and B/H 0.61 along
-      its lines fail the overlap and B/H rules below. More than 5 % of the frames above 2 px
-      fails; fewer are listed (their
+      1.5-1.8 px) does not reconstruct whole (COLMAP, through sfap handoff --run, registers 12-13
+      of its 28 frames in the largest of 9-10 models), but its 37 % endlap and B/H 0.61 between
+      consecutive frames fail the overlap and B/H rules above: the check needs no blur failure
+      to predict it. More than 5 % of the frames above 2 px fails; fewer are listed (their
       neighbours cover them).
     - ``min_base_height_ratio``, ``max_base_height_ratio``: the good range of a pair's B/H:
       above 0.54 (30 deg of intersection) matching gets hard (Wenzel et al. 2013); below 0.1
