@@ -51,7 +51,15 @@ from .footprints import Footprints
 from .frames import AttitudeSource, Frames
 from .ground import Ground
 from .inputs import PlanInfo, frames_local_frame
-from .verdict import DEFAULT_THRESHOLDS, Thresholds, above, good_base_height, judge
+from .verdict import (
+    DEFAULT_THRESHOLDS,
+    LineSteps,
+    Thresholds,
+    above,
+    good_base_height,
+    judge,
+    overlap_warnings,
+)
 
 log = logging.getLogger(__name__)
 
@@ -175,6 +183,7 @@ class CheckResult:
     unpositioned: tuple[str, ...] = ()
     left_out: tuple[tuple[str, str], ...] = ()
     camera_source: str = ""
+    good_pair_basis: str = "frames on one line or neighbouring lines"
     stats: dict[str, Any] = field(default_factory=dict)
 
     @property
@@ -241,7 +250,7 @@ class CheckResult:
             rows.append(
                 (
                     "stereo",
-                    f"{self.good_pair_pct:.1f} % of the area has a pair with B/H in "
+                    f"{self.good_pair_pct:.1f} % of the area has a pair ({self.good_pair_basis}) with B/H in "
                     f"{self.thresholds.min_base_height_ratio:g}-{self.thresholds.max_base_height_ratio:g}",
                 )
             )
@@ -362,6 +371,7 @@ class CheckResult:
                 ),
                 "intersection_angle_deg": angle.as_dict() if angle else None,
                 "good_pair_area_pct": self.good_pair_pct,
+                "good_pair_basis": self.good_pair_basis,
                 "convergent_frames_pct": self.convergent_pct,
                 "doming_risk": self.doming_risk,
             },
@@ -629,6 +639,17 @@ def run_check(
         blurred_frames=blurred_frames,
         frame_count=len(frames),
         blur_unknown_count=(int(np.isnan(stereo.blur_px).sum()) if stereo.blur_px is not None else 0),
+        base_height_along_line=Distribution.of(stereo.pair_base_height_ratio[stereo.pair_along_line]),
+        steps=stereo.steps,
+        good_pair_basis=stereo.good_pair_basis,
+    )
+    all_warnings.extend(
+        overlap_warnings(
+            thresholds=thresholds,
+            forward_overlap_pct=stereo.forward_overlap_pct,
+            side_overlap_pct=stereo.side_overlap_pct,
+            steps=stereo.steps,
+        )
     )
     lonlat_rings = np.stack(frame.to_lonlat(fp.xy_m[..., 0], fp.xy_m[..., 1]), axis=-1)
     return CheckResult(
@@ -665,6 +686,7 @@ def run_check(
         pair_along_line=stereo.pair_along_line,
         pair_across_lines=stereo.pair_across_lines,
         good_pair_pct=stereo.good_pair_pct,
+        good_pair_basis=stereo.good_pair_basis,
         stereo_class=stereo.stereo_class,
         convergent_pct=stereo.convergent_pct,
         doming_risk=stereo.doming_risk,
@@ -702,6 +724,8 @@ class _Stereo:
     blur_px: NDArray[np.float64] | None
     flagged: tuple[FrameFlag, ...]
     warnings: tuple[str, ...]
+    steps: LineSteps | None
+    good_pair_basis: str
     notes: tuple[str, ...]
     line_count: int
 
@@ -737,12 +761,22 @@ def _stereo(
     lo, hi = thresholds.min_base_height_ratio, thresholds.max_base_height_ratio
     classes = np.full(grid.shape, STEREO_NONE, dtype=np.int8)
     good_pct: float | None = None
-    if len(pairs):
+    # The pairs that carry a block's stereo: two frames of the same line (consecutive ones, or
+    # further apart when the endlap is high and consecutive bases are short) and a frame with the
+    # nearest frame of a neighbouring line (the sidelap; at the ends of the lines the only pair).
+    # Not every overlapping pair: frames two lines apart or diagonal would call ground good that
+    # no matcher ties through neighbours. Without such pairs (no order to the frames) every
+    # overlapping pair counts, and the basis says so.
+    same_line = lines[pairs.i] == lines[pairs.j]
+    kinds = same_line | across
+    basis = kinds if kinds.any() else np.ones(len(pairs), dtype=bool)
+    basis_text = "frames on one line or neighbouring lines" if kinds.any() else "any two overlapping frames"
+    if basis.any():
         # Later classes win: a cell with any good pair is good, else wide, else weak.
-        good = good_base_height(bh, thresholds)
+        good = good_base_height(bh, thresholds) & basis
         for code, select in (
-            (STEREO_WEAK, ~good & (bh < lo)),
-            (STEREO_WIDE, ~good & (bh > hi)),
+            (STEREO_WEAK, basis & ~good & (bh < lo)),
+            (STEREO_WIDE, basis & ~good & (bh > hi)),
             (STEREO_GOOD, good),
         ):
             if select.any():
@@ -799,6 +833,12 @@ def _stereo(
                 "capture interval); their blur is not judged"
             )
     warnings: list[str] = []
+    if len(pairs) and not kinds.any():
+        warnings.append(
+            "no two overlapping frames on one flight line or neighbouring ones (no capture times, or "
+            "frames too far apart): "
+            "the stereo share is judged on any two overlapping frames"
+        )
     scale_count = sum(1 for f in flagged if f.kind == "scale")
     if scale_count:
         warnings.append(
@@ -807,9 +847,25 @@ def _stereo(
         )
     off_nadir = off_nadir_deg(fp)[fp.valid]
     convergent_pct = 100.0 * float((off_nadir > CONVERGENT_OFF_NADIR_DEG).mean()) if off_nadir.size else 0.0
+    steps = None
+    if along.any():
+        interval_s = None
+        if frames.time_utc_s is not None:
+            t_s = np.asarray(frames.time_utc_s, dtype=np.float64)
+            dt = np.abs(t_s[pairs.j[along]] - t_s[pairs.i[along]])
+            dt = dt[np.isfinite(dt) & (dt > 0)]
+            interval_s = float(np.median(dt)) if dt.size else None
+        steps = LineSteps(
+            base_m=float(np.median(pairs.base_m[along])),
+            interval_s=interval_s,
+            spacing_m=float(np.median(pairs.base_m[across])) if across.any() else None,
+            base_height_along=float(np.median(bh[along])),
+        )
     return _Stereo(
         forward_overlap_pct=Distribution.of(forward_overlaps_pct(frames, fp, lines)),
         side_overlap_pct=Distribution.of(side_overlaps_pct(frames, fp, lines)),
+        steps=steps,
+        good_pair_basis=basis_text,
         pair_index=np.column_stack([pairs.i, pairs.j]).astype(np.int64),
         pair_base_height_ratio=np.asarray(bh, dtype=np.float64),
         pair_intersection_deg=np.asarray(pairs.intersection_angle_deg, dtype=np.float64),

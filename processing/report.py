@@ -307,11 +307,13 @@ def gsd_png(result: CheckResult) -> bytes:
 
 def base_height_png(result: CheckResult) -> bytes:
     """The best pair seeing each cell, in three classes of base-height ratio (weak, good,
-    wide)."""
+    wide); the pairs are those the stereo share counts (``result.good_pair_basis``: frames on
+    one line or neighbouring lines when there are any)."""
     t = result.thresholds
     m = _Map(
         result,
-        f"Base-height ratio of the best pair (good {t.min_base_height_ratio:g}-{t.max_base_height_ratio:g})",
+        f"Base-height ratio of the best pair ({result.good_pair_basis}; good "
+        f"{t.min_base_height_ratio:g}-{t.max_base_height_ratio:g})",
     )
     classes = result.stereo_class.astype(np.float64)
     if (result.stereo_class != STEREO_NONE).any():

@@ -15,7 +15,9 @@ Everything is measured on the footprints of :mod:`processing.footprints`, in the
   (James and Robson 2014, REFERENCES.md section 1).
 - Frames whose GSD differs from the median of their overlapping neighbours' by more than 10 %.
 - A good B/H range, 0.1-0.54 by default (intersection angles of about 6-30 deg; Wenzel et al.
-  2013): the share of the area where at least one pair in that range overlaps.
+  2013): the share of the area where at least one pair in that range overlaps, among the frames
+  of one line and the nearest frames of neighbouring lines (every overlapping pair when there
+  are none).
 - Ground speed per frame (m/s): over the step to its nearer-in-time neighbour on the same flight
   line, unknown when that neighbour is more than 3 x the median capture interval away
   (:func:`ground_speeds_m_s`); motion blur, pixels: speed x exposure time / GSD, when an
@@ -471,10 +473,14 @@ def good_pair_share_pct(
     grid: Grid,
     area_mask: NDArray[np.bool_],
     base_height_range: tuple[float, float] = GOOD_BASE_HEIGHT_RATIO,
+    use: NDArray[np.bool_] | None = None,
 ) -> float:
-    """Percent of the area's cells that at least one pair with B/H in range overlaps."""
+    """Percent of the area's cells that at least one pair with B/H in range overlaps; ``use``:
+    only these pairs count (e.g. those of :func:`pair_kinds` and the same line)."""
     lo, hi = base_height_range
     good = (pairs.base_height_ratio >= lo) & (pairs.base_height_ratio <= hi)
+    if use is not None:
+        good &= use
     cells = int(area_mask.sum())
     if cells == 0:
         raise ProcessingError("the area covers no cell of the grid; use a smaller cell size")
@@ -737,7 +743,12 @@ def analyse_block(
     share = 100.0 * float(convergent.mean()) if convergent.size else 0.0
     good_share = None
     if grid is not None and area_mask is not None:
-        good_share = good_pair_share_pct(pairs, grid, area_mask, base_height_range)
+        # As the check counts them: frames on one line or neighbouring lines, when there are any.
+        _, across = pair_kinds(frames, pairs, lines)
+        kinds = (lines[pairs.i] == lines[pairs.j]) | across
+        good_share = good_pair_share_pct(
+            pairs, grid, area_mask, base_height_range, use=kinds if kinds.any() else None
+        )
     result = BlockGeometry(
         pairs=pairs,
         lines=lines,

@@ -34,6 +34,23 @@ class Thresholds:
       lets a matcher confirm a point.
     - ``max_overlap_shortfall_pct``: the median forward and side overlap may fall this many
       points under the plan's (10; "planned 80/80, got almost zero", REFERENCES.md section 5).
+    - ``min_forward_overlap_pct``, ``recommended_forward_overlap_pct``: the median forward overlap
+      (endlap) of consecutive frames of a line, with or without a plan. Below 60 % it fails: 60 %
+      is the endlap of a classical stereo block (Aber et al. 2019, ch. 3, REFERENCES.md section 1),
+      the least that puts every ground point in the stereo model of two consecutive frames and
+      ties each frame to the next but one; SfM-MVS "needs far more redundancy" (same source).
+      Below 75 % it is a warning: 75 % frontal overlap is what Pix4D recommends for the general
+      case (Pix4D support, "Selecting the image acquisition plan type": at least 75 % frontal
+      and 60 % side overlap). An area seen three times only because lines cross it still needs this
+      overlap along each line: matching runs between neighbouring frames first.
+    - ``min_side_overlap_pct``, ``recommended_side_overlap_pct``: the median side overlap of a
+      frame with each neighbouring line. Below 20 % it fails: the low end of a classical block's
+      sidelap (20-30 %, Aber et al. 2019 ch. 3); less leaves each line tied to the next by a strip
+      too narrow to hold the block together. Below 60 % it is a warning (Pix4D's general case:
+      60 % side overlap). A block with one line has no side overlap and is not judged on it.
+    - ``max_base_height_ratio`` also bounds the median B/H of consecutive frames of a line:
+      above it every forward pair is past 30 deg of intersection, where matching gets hard
+      (Wenzel et al. 2013), and the block hangs on pairs the matcher struggles with: it fails.
     - ``max_blur_px``: motion blur per frame above half a pixel (the limit QGC and Mission
       Planner plan with, REFERENCES.md section 2) flags the frame: a warning, not a failure.
     - ``fail_blur_px``, ``max_blurred_frames_pct``: blur above 2 px is where it starts to hurt
@@ -42,14 +59,24 @@ class Thresholds:
       COLMAP and OpenDroneMap match with, so features survive at every scale up to about there;
       beyond it the finest features go and matching and the point cloud degrade (Sieberth,
       Wackrow and Chandler 2014, "Motion blur disturbs", The Photogrammetric Record 29(148), see
-      the loss grow with blur of a few pixels; no published cut-off is sharper). The OpenDroneMap
-      test set garfield (Parrot Sequoia, 1.5-1.8 px) reconstructs. More than 5 % of the frames
-      above 2 px fails; fewer are listed (their neighbours cover them).
+      the loss grow with blur of a few pixels; no published cut-off is sharper). The 28-frame
+      subset of the OpenDroneMap test flight garfield in ../shared/data (Parrot Sequoia, blur
+      1.5-1.8 px) does not reconstruct whole (COLMAP, through sfap handoff --run, registers 12-13
+      of its 28 frames in the largest of 9-10 models), but its 37 % endlap and B/H 0.61 between
+      consecutive frames fail the overlap and B/H rules above: the check needs no blur failure
+      to predict it. More than 5 % of the frames above 2 px fails; fewer are listed (their
+      neighbours cover them).
     - ``min_base_height_ratio``, ``max_base_height_ratio``: the good range of a pair's B/H:
       above 0.54 (30 deg of intersection) matching gets hard (Wenzel et al. 2013); below 0.1
       (5.7 deg) depth precision sigma_Z = (H/B)(H/f) sigma_image is ten times worse than the
       height error of the plan's pixel.
-    - ``min_good_pair_pct``: share of the area seen by at least one pair in that range (90 %).
+    - ``min_good_pair_pct``: share of the area seen by at least one pair in that range (90 %), among
+      the pairs that carry a block's stereo: two frames of the same line (consecutive ones, or
+      further apart when a high endlap makes consecutive bases short) and a frame with the
+      nearest frame of a neighbouring line; not frames two lines apart or diagonal pairs. This
+      share is about the geometry of the pairs; whether consecutive frames overlap enough to be
+      matched at all is the forward overlap rule's (a sparse subset of passes minutes apart can
+      have good across-line pairs everywhere and still fall apart).
     - ``max_scale_difference_pct``: image scales differing by more than 10 % hamper matching
       (REFERENCES.md section 1): such frames are flagged (a warning).
     - ``max_gap_area_m2``: any gap larger than this fails, whatever the share seen (25 m2: a
@@ -62,6 +89,10 @@ class Thresholds:
     min_seen_1_pct: float = 99.0
     min_seen_3_pct: float = 90.0
     max_overlap_shortfall_pct: float = 10.0
+    min_forward_overlap_pct: float = 60.0
+    recommended_forward_overlap_pct: float = 75.0
+    min_side_overlap_pct: float = 20.0
+    recommended_side_overlap_pct: float = 60.0
     max_blur_px: float = 0.5
     fail_blur_px: float = 2.0
     max_blurred_frames_pct: float = 5.0
@@ -77,6 +108,10 @@ class Thresholds:
             "min_seen_1_pct",
             "min_seen_3_pct",
             "max_overlap_shortfall_pct",
+            "min_forward_overlap_pct",
+            "recommended_forward_overlap_pct",
+            "min_side_overlap_pct",
+            "recommended_side_overlap_pct",
             "max_blurred_frames_pct",
             "min_good_pair_pct",
             "max_scale_difference_pct",
@@ -84,6 +119,15 @@ class Thresholds:
             value = getattr(self, key)
             if not (math.isfinite(value) and 0.0 <= value <= 100.0):
                 raise ProcessingError(f"threshold {key} = {value} is outside 0-100 %")
+        for floor, level in (
+            ("min_forward_overlap_pct", "recommended_forward_overlap_pct"),
+            ("min_side_overlap_pct", "recommended_side_overlap_pct"),
+        ):
+            if getattr(self, floor) > getattr(self, level):
+                raise ProcessingError(
+                    f"threshold {floor} = {getattr(self, floor)} must not exceed {level} = "
+                    f"{getattr(self, level)} (the warning comes before the failure)"
+                )
         if not (self.max_blur_px > 0 and math.isfinite(self.max_blur_px)):
             raise ProcessingError(f"threshold max_blur_px = {self.max_blur_px} must be positive pixels")
         if not (math.isfinite(self.fail_blur_px) and self.fail_blur_px >= self.max_blur_px):
@@ -121,6 +165,86 @@ def above(values_px: NDArray[np.float64], limit_px: float) -> NDArray[np.bool_]:
     return np.asarray(np.nan_to_num(values_px, nan=-np.inf) > limit_px, dtype=bool)
 
 
+@dataclass(frozen=True, kw_only=True)
+class LineSteps:
+    """How the block was flown, for the advice: the median base between consecutive frames of a
+    line (m), the median interval between them (s, None without capture times), the median
+    spacing between neighbouring lines (m, the base of the across-line pairs; None with one
+    line) and the median B/H of consecutive frames of a line (None without such pairs)."""
+
+    base_m: float
+    interval_s: float | None = None
+    spacing_m: float | None = None
+    base_height_along: float | None = None
+
+
+def _trigger_advice(steps: LineSteps | None, factor: float, what: str) -> str:
+    """'a trigger distance of at most X m (now Y m), or ... m/s at the same interval' for a base
+    ``factor`` times the flown one."""
+    if steps is None or not (steps.base_m > 0 and math.isfinite(steps.base_m)):
+        return f"fly again with {what}: a shorter trigger distance or a lower speed"
+    target = steps.base_m * factor
+    text = f"fly again with {what}: a trigger distance of at most {target:.1f} m (now {steps.base_m:.1f} m)"
+    if steps.interval_s is not None and steps.interval_s > 0:
+        text += (
+            f", or at the same {steps.interval_s:.1f} s interval a ground speed of at most "
+            f"{target / steps.interval_s:.1f} m/s (now {steps.base_m / steps.interval_s:.1f} m/s)"
+        )
+    return text
+
+
+def _overlap_factor(measured_pct: float, target_pct: float) -> float:
+    """The base (or spacing) that turns ``measured_pct`` overlap into ``target_pct``, as a factor of
+    the flown one: overlap = 1 - base / footprint, so base scales with (1 - overlap)."""
+    return (1.0 - target_pct / 100.0) / max(1.0 - measured_pct / 100.0, 1e-9)
+
+
+def _spacing_advice(steps: LineSteps | None, factor: float, what: str) -> str:
+    if steps is None or steps.spacing_m is None:
+        return f"fly again with {what}: lines closer together"
+    return (
+        f"fly again with {what}: lines at most {steps.spacing_m * factor:.1f} m apart "
+        f"(now {steps.spacing_m:.1f} m)"
+    )
+
+
+def overlap_warnings(
+    *,
+    thresholds: Thresholds,
+    forward_overlap_pct: Distribution | None,
+    side_overlap_pct: Distribution | None,
+    steps: LineSteps | None = None,
+    good_pair_basis: str = "frames on one line or neighbouring lines",
+) -> tuple[str, ...]:
+    """Overlaps at or above the failure floor but below the recommended level, and an overlap
+    that could not be measured, as warnings (they do not fail the check)."""
+    t = thresholds
+    out: list[str] = []
+    if forward_overlap_pct is None:
+        out.append(
+            "forward overlap not measured: no two consecutive frames on a line (no capture times, or "
+            "frames too far apart); the endlap and the B/H of consecutive frames are not judged"
+        )
+    elif t.min_forward_overlap_pct <= forward_overlap_pct.median < t.recommended_forward_overlap_pct:
+        factor = _overlap_factor(forward_overlap_pct.median, t.recommended_forward_overlap_pct)
+        out.append(
+            f"median forward overlap {forward_overlap_pct.median:.0f} % is below the "
+            f"{t.recommended_forward_overlap_pct:g} % recommended for SfM (the "
+            f"{t.min_forward_overlap_pct:g} % stereo minimum is met); next time, "
+            + _trigger_advice(steps, factor, f"{t.recommended_forward_overlap_pct:g} % endlap")
+        )
+    if side_overlap_pct is not None and (
+        t.min_side_overlap_pct <= side_overlap_pct.median < t.recommended_side_overlap_pct
+    ):
+        factor = _overlap_factor(side_overlap_pct.median, t.recommended_side_overlap_pct)
+        out.append(
+            f"median side overlap {side_overlap_pct.median:.0f} % is below the "
+            f"{t.recommended_side_overlap_pct:g} % recommended for SfM; next time, "
+            + _spacing_advice(steps, factor, f"{t.recommended_side_overlap_pct:g} % side overlap")
+        )
+    return tuple(out)
+
+
 def judge(
     *,
     thresholds: Thresholds,
@@ -134,6 +258,9 @@ def judge(
     frame_count: int,
     blur_unknown_count: int = 0,
     blurred_frames: Sequence[tuple[str, float]] = (),
+    base_height_along_line: Distribution | None = None,
+    steps: LineSteps | None = None,
+    good_pair_basis: str = "frames on one line or neighbouring lines",
 ) -> tuple[str, ...]:
     """The reasons a check fails, each with the figure, the threshold and what it means;
     empty when it passes.
@@ -142,6 +269,12 @@ def judge(
     (``blurred_frames``: their names and blur in pixels, named in the reason);
     ``blur_unknown_count`` more have no known speed (so no blur): they count as not blurred,
     and the reason says how many there were.
+
+    ``forward_overlap_pct`` and ``side_overlap_pct`` are judged against the absolute floors with or
+    without a plan (and against the plan's overlaps when there is one);
+    ``base_height_along_line``: the B/H of consecutive frames of a line, its median judged
+    against ``max_base_height_ratio``; ``steps``: the flown base, interval and line spacing, for
+    the advice (trigger distance and speed that would give the recommended overlap).
     """
     t = thresholds
     reasons: list[str] = []
@@ -178,11 +311,42 @@ def judge(
                     f"median {what} overlap {dist.median:.0f} % is more than "
                     f"{t.max_overlap_shortfall_pct:g} points under the planned {planned:g} %"
                 )
+    if forward_overlap_pct is not None and forward_overlap_pct.median < t.min_forward_overlap_pct:
+        factor = _overlap_factor(forward_overlap_pct.median, t.recommended_forward_overlap_pct)
+        reasons.append(
+            "median forward overlap (endlap) of consecutive frames of a line "
+            f"{forward_overlap_pct.median:.0f} % "
+            f"(10-90 %: {forward_overlap_pct.p10:.0f}-{forward_overlap_pct.p90:.0f} % over "
+            f"{forward_overlap_pct.count} pairs) is below the {t.min_forward_overlap_pct:g} % a stereo block "
+            "needs: frames do not tie to their neighbours on the line (ground seen 3 times by crossing "
+            "passes does not replace it); "
+            + _trigger_advice(steps, factor, f"at least {t.recommended_forward_overlap_pct:g} % endlap")
+        )
+    if side_overlap_pct is not None and side_overlap_pct.median < t.min_side_overlap_pct:
+        factor = _overlap_factor(side_overlap_pct.median, t.recommended_side_overlap_pct)
+        reasons.append(
+            f"median side overlap {side_overlap_pct.median:.0f} % (10-90 %: {side_overlap_pct.p10:.0f}-"
+            f"{side_overlap_pct.p90:.0f} %) is below {t.min_side_overlap_pct:g} %: the lines are not tied "
+            "into one block; "
+            + _spacing_advice(steps, factor, f"at least {t.recommended_side_overlap_pct:g} % side overlap")
+        )
+    if base_height_along_line is not None and base_height_along_line.median > t.max_base_height_ratio:
+        angle_deg = math.degrees(2.0 * math.atan(base_height_along_line.median / 2.0))
+        # At the same height the base scales with B/H.
+        factor = t.max_base_height_ratio / base_height_along_line.median
+        reasons.append(
+            f"median base-height ratio of consecutive frames of a line {base_height_along_line.median:.2f} "
+            f"({angle_deg:.0f} deg of intersection, over {base_height_along_line.count} pairs) is above "
+            f"{t.max_base_height_ratio:g}: matching between neighbouring frames gets hard; "
+            + _trigger_advice(steps, factor, f"B/H at most {t.max_base_height_ratio:g}")
+        )
     if good_pair_pct is not None and good_pair_pct < t.min_good_pair_pct:
         reasons.append(
-            f"only {good_pair_pct:.1f} % of the area is seen by a pair with a base-height ratio in "
+            f"only {good_pair_pct:.1f} % of the area is seen by a pair ({good_pair_basis}) with a "
+            "base-height ratio in "
             f"{t.min_base_height_ratio:g}-{t.max_base_height_ratio:g} (at least {t.min_good_pair_pct:g} % "
-            "needed): depth will be poorly determined"
+            "needed): depth will be poorly determined where it is lower, matching will fail where it is "
+            "higher"
         )
     if frame_count and 100.0 * blurred_count / frame_count > t.max_blurred_frames_pct:
         unknown = f"; blur unknown for {blur_unknown_count} frames (no speed)" if blur_unknown_count else ""

@@ -67,9 +67,28 @@ def edit(
             image.modify_xmp(xmp)
 
 
+#: The garfield subset fails the overlap rules (37 % endlap, B/H 0.61 between consecutive frames:
+#: COLMAP registers 12 of its 28 frames in one model; tests/processing/test_check.py covers that).
+#: These cases are about reading what cards hold, so those rules are relaxed here and an exit code
+#: of 0 still says nothing else failed.
+OVERLAP_RELAXED = (
+    "--threshold", "min_forward_overlap_pct=0", "--threshold", "recommended_forward_overlap_pct=0",
+    "--threshold", "max_base_height_ratio=1", "--threshold", "min_good_pair_pct=0",
+)  # fmt: skip
+
+
 def check(folder: Path, *args: str) -> tuple[int, str]:
     result = CliRunner().invoke(
-        cli, ["check", str(folder), "--ground-elevation-m", str(GROUND_M), "--no-progress", *args]
+        cli,
+        [
+            "check",
+            str(folder),
+            "--ground-elevation-m",
+            str(GROUND_M),
+            "--no-progress",
+            *OVERLAP_RELAXED,
+            *args,
+        ],
     )
     return result.exit_code, result.output
 
