@@ -271,5 +271,10 @@ def _present(
     if refly:
         if wrote_refly and out_dir is not None:
             click.echo(f"re-fly mission: {out_dir / 'refly' / 'mission.plan'}")
-        else:
+        elif result.passed:
             click.echo("re-fly mission: none needed (no gap)")
+        else:
+            click.echo(
+                "re-fly mission: none written: there is no gap to fill, the block fails for the reasons "
+                "above; fly it again as they say"
+            )

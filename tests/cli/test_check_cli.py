@@ -91,6 +91,8 @@ def test_real_images_with_a_ground_elevation(tmp_path: Path) -> None:
     assert "motion blur" not in verdict
     assert "motion blur above 0.5 px" in result.output and "parrot-sequoia-rgb" in result.output
     assert not (out / "refly").exists()
+    # No gap to re-fly, yet the block fails: --refly must not call that "none needed".
+    assert "none needed" not in result.output and "fly it again" in result.output
     # With the overlap rules relaxed, the verdict on blur alone: a pass; a stricter blur failure
     # threshold turns it, naming the frames and their blur.
     relaxed = [
