@@ -389,9 +389,10 @@ def _fill_stereo(
     end_stations: int,
     rounds: int = 2,
 ) -> list[Segment]:
-    """Fill segments over the parts of the area seen by fewer than two frames (beside exclusions,
-    in the gaps a line leaves around them, in thin parts): each such part, found on a grid of
-    the area, gets a run of its own (with its end stations, so at least two views)."""
+    """Fill segments over the parts of the area seen by fewer than two frames, or three when the
+    forward overlap gives three (beside exclusions, in the gaps a line leaves around them, where a
+    short line was dropped, in thin parts): each such part, found on a grid of the area and
+    along its edges, gets a run of its own (with its end stations, so enough views)."""
     from .coverage import boundary_points, grid_points, view_counts
 
     cell = min(trigger_distance_m, rect.across_m) / 4.0
@@ -399,9 +400,11 @@ def _fill_stereo(
     points = np.vstack([points, boundary_points(area, min(cell, 1.0))])
     if len(points) == 0:
         return segments
+    # Three views where a line's own frames give three (forward overlap of 2/3 or more), else two.
+    need = 3 if 3.0 * trigger_distance_m <= rect.along_m + 1e-9 else 2
     for _ in range(rounds):
         counts = view_counts(points, segments, rect)
-        weak = points[counts < 2]
+        weak = points[counts < need]
         if len(weak) == 0:
             break
         boxes = shapely.box(weak[:, 0] - cell, weak[:, 1] - cell, weak[:, 0] + cell, weak[:, 1] + cell)
