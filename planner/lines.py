@@ -148,7 +148,7 @@ def layout_pass(
                 trigger_distance_m,
                 (u_lo, u_hi),
                 end_stations=end_stations,
-            )  # fmt: skip
+            )
         )
 
     segments = _drop_slivers(segments, area_uv, rect)

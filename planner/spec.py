@@ -310,7 +310,7 @@ def _parse_vehicle(value: Any, where: str) -> VehicleSpec:
             1.0,
             1440.0,
             default=30.0 if vehicle_type is VehicleType.MULTIROTOR else 90.0,
-        ),  # fmt: skip
+        ),
     )
 
 

@@ -170,7 +170,7 @@ def replay_at_loop_rate(
     _, _, legs = _WGS84.inv(lon[:-1], lat[:-1], lon[1:], lat[1:])
     t_nav = np.concatenate([[0.0], np.cumsum(np.asarray(legs) / np.asarray(leg_speed[1:]))])
     dt = 1.0 / loop_hz
-    n_ticks = int(math.ceil(t_nav[-1] / dt)) + 1
+    n_ticks = math.ceil(t_nav[-1] / dt) + 1
     t = np.arange(n_ticks) * dt
     # Straight legs: interpolate in lon/lat within each leg (legs are a few km at most).
     tick_lon = np.interp(t, t_nav, lon)

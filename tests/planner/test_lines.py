@@ -56,7 +56,7 @@ shapes = st.one_of(
         ),
         st.floats(200, 400),
         st.floats(10, 60),
-    ),  # fmt: skip
+    ),
 )
 
 
