@@ -128,3 +128,12 @@ def test_split_runs_keep_every_station_in_place(count: int, limit: int, spacing:
     # joined inside, free at the two ends
     assert not runs[0].join_lo and not runs[-1].join_hi
     assert all(r.join_hi for r in runs[:-1]) and all(r.join_lo for r in runs[1:])
+
+
+@pytest.mark.parametrize("direction", [1, -1])
+def test_a_one_station_run_is_a_line_of_nonzero_length(direction: int) -> None:
+    # photo at the start, camera off half a spacing on: the flight line has two distinct ends
+    seg = Segment(row=0, v_m=0.0, u_first_m=10.0, spacing_m=8.0, count=1, direction=direction)
+    start, stop = seg.camera_on_u()
+    assert start == 10.0
+    assert stop == pytest.approx(10.0 + direction * 4.0)
