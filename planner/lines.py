@@ -297,9 +297,11 @@ def _segments_for_line(
         # Stereo at the ends: the frame whose back edge reaches ``lo`` is the only one that sees
         # it; each extra station one trigger distance further out adds one more view of the edge
         # (a frame is longer than the trigger distance), clipped below by the blocked zones.
-        useful = min(end_stations, math.floor(rect.along_m / trigger_distance_m + 1e-9))
-        p0 -= useful * trigger_distance_m
-        p1 += useful * trigger_distance_m
+        # (only as many as still see the end: the frame must reach it)
+        k_lo = min(end_stations, math.floor((p0 + rect.u_max_m - lo) / trigger_distance_m + 1e-9))
+        k_hi = min(end_stations, math.floor((hi - p1 - rect.u_min_m) / trigger_distance_m + 1e-9))
+        p0 -= max(0, k_lo) * trigger_distance_m
+        p1 += max(0, k_hi) * trigger_distance_m
         for s_lo, s_hi, _, _ in _subtract((p0, p1), holes):
             # The camera-off point lies half a spacing past the last station, whichever way the
             # segment is flown: keep it out of the nearest blocked zone on either side.

@@ -327,14 +327,17 @@ def check_plan(plan: SurveyPlan, front_pct: float, side_pct: float, clearance_m:
             assert np.all(np.diff(along) <= base + 1e-6)
             assert run.length > 0, "a zero-length camera-on line"
 
-    # 4. camera-on segments stay within the area's buffer and out of exclusions
+    # 4. photos see the area; camera-on segments stay near it and out of exclusions
     zones = shapely.union_all(plan.exclusions_xy) if plan.exclusions_xy else None
+    # every photo sees some of the area
+    assert np.all(shapely.intersects(shapely.polygons(stations.footprint_xy_m), plan.area_xy.buffer(1e-6)))
     for p in plan.passes:
-        # a camera is never farther from the area than the farthest corner of its own frame
+        # the camera is on no farther from the area than a frame reaches, plus the half spacing
+        # between the last station and the camera-off point
         mask = stations.pass_index == p.index
         cam = np.stack([stations.x_m[mask], stations.y_m[mask]], axis=-1)[:, None, :]
         reach = float(np.max(np.hypot(*(stations.footprint_xy_m[mask] - cam).transpose(2, 0, 1))))
-        buffer = plan.area_xy.buffer(reach + 1e-6)
+        buffer = plan.area_xy.buffer(reach + 0.5 * p.trigger_distance_m + 1e-6)
         for line_obj in p.lines:
             seg = LineString([line_obj.start_xy_m, line_obj.end_xy_m])
             assert buffer.contains(seg), "camera on outside the area's buffer"
