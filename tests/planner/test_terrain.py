@@ -309,3 +309,31 @@ def test_badlands_at_constant_altitude_reports_the_loss(tmp_path: Path) -> None:
     # 12 m ridges under a 75 m flight: the ridge tops are 16 % nearer, the sidelap there is lower
     assert terrain["side_overlap_min_pct"] < 70.0 - 3.0  # type: ignore[operator]
     assert any("overlap by as little as" in w and "follow = true" in w for w in plan.warnings)
+
+
+def test_terrain_figures_of_the_summary(terrain_plan: SurveyPlan, dem: Dem) -> None:
+    """summary.json's terrain figures against the mission's own waypoints and the DEM."""
+    terrain = terrain_plan.summary.terrain
+    assert terrain is not None
+    home = terrain_plan.home.alt_amsl_m
+    assert terrain["home_ground_amsl_m"] == pytest.approx(home)
+    # stations: altitude above home from the waypoints' straight legs; height above the DEM
+    st = terrain_plan.stations
+    ground = dem.elevation_at(st.x_m, st.y_m, terrain_plan.frame)
+    agl = st.alt_rel_home_m + home - ground
+    assert terrain["station_alt_agl_min_m"] == pytest.approx(float(agl.min()), abs=1e-6)
+    assert terrain["station_alt_agl_max_m"] == pytest.approx(float(agl.max()), abs=1e-6)
+    # GSD = pixel pitch x height / focal length (Eq. 3-4) at the lowest and highest station
+    camera = terrain_plan.camera
+    pitch = max(camera.pixel_pitch_x_mm, camera.pixel_pitch_y_mm)
+    assert terrain["gsd_min_cm"] == pytest.approx(100 * pitch * agl.min() / camera.focal_length_mm, rel=1e-6)
+    assert terrain["gsd_max_cm"] == pytest.approx(100 * pitch * agl.max() / camera.focal_length_mm, rel=1e-6)
+    # the path: the highest waypoint above home, and the lowest pass over the ground
+    wps = [it for it in terrain_plan.mission.items if it.command == MavCmd.NAV_WAYPOINT]
+    assert terrain["alt_rel_home_max_m"] == pytest.approx(max(w.alt_m for w in wps), abs=0.05)
+    flown, _ = flown_agl(terrain_plan, dem, step_m=1.0)
+    assert terrain["path_alt_agl_min_m"] == pytest.approx(float(flown.min()), abs=0.5)
+    # the frames were spaced for the highest ground they see
+    assert float(terrain["footprint_scale"]) <= float(terrain["footprint_scale_min"]) + 1e-9  # type: ignore[arg-type]
+    assert float(terrain["front_overlap_min_pct"]) >= 80.0 - 1.0  # type: ignore[arg-type]
+    assert float(terrain["side_overlap_min_pct"]) >= 70.0 - 1.0  # type: ignore[arg-type]
