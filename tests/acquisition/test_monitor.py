@@ -628,7 +628,7 @@ def test_gully_flight_records_one_event_per_planned_station(tmp_path: Path, run_
     result: MonitorResult = box["result"]
     assert result.reason is StopReason.LANDED
     n = len(plan.stations)
-    assert len(shots) == n == 628  # the gully plan: 14 lines with two end stations each side
+    assert len(shots) == n == 628  # the gully plan, with the planner's end stations for stereo
     state = result.state
     assert state.photos_taken == n and state.photos_planned == n
     assert state.missed_stations == () and state.extra_photos == 0
