@@ -322,6 +322,12 @@ def _segments_for_line(
             s_lo, s_hi = t_lo, t_hi
             length = s_hi - s_lo
             count = max(1, math.ceil(length / trigger_distance_m - 1e-9) + 1) if length > _EPS else 1
+            if count > 1 and length < 0.5 * trigger_distance_m:
+                # Two stations closer than half a trigger distance: an autopilot checking the
+                # distance once per loop cannot hold that; spread them to half a distance (the
+                # camera-off point then reaches at most the blocked zone's buffered edge).
+                pad = (0.5 * trigger_distance_m - length) / 2.0
+                s_lo, s_hi, length = s_lo - pad, s_hi + pad, 0.5 * trigger_distance_m
             spacing = length / (count - 1) if count > 1 else single
             segments.append(
                 Segment(row=row, v_m=v_line, u_first_m=s_lo, spacing_m=spacing, count=count, fill=fill)

@@ -220,6 +220,11 @@ def plan_polygons(spec: MissionSpec, polygons: list[Polygon], exclusions: list[P
             f"{100.0 - views.seen_2_pct:.2f} % of the area is seen by fewer than two nadir frames "
             f"(no stereo there){fix}"
         )
+    elif views.edge_weak_points:
+        warnings.append(
+            f"{views.edge_weak_points} points along the area's edge (beside exclusions) are seen by "
+            f"fewer than two nadir frames (no stereo there)"
+        )
     target3 = stereo_3_target_pct(nadir_pass.trigger_distance_m, nadir_pass.rect.along_m)
     if views.seen_3_pct < target3:
         warnings.append(
