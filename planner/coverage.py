@@ -33,6 +33,8 @@ class ViewShares:
     seen_2_pct: float
     seen_3_pct: float
     cell_m: float
+    #: Points along the area's edge (every metre) seen by fewer than two frames.
+    edge_weak_points: int = 0
 
 
 def view_counts(
@@ -89,7 +91,10 @@ def view_shares(
         points = np.array([[p.x, p.y]])
     counts = view_counts(points, segments, rect)
     n = len(counts)
+    edge = boundary_points(area_uv, 1.0)
+    edge_weak = int(np.count_nonzero(view_counts(edge, segments, rect) < 2)) if len(edge) else 0
     return ViewShares(
+        edge_weak_points=edge_weak,
         seen_1_pct=100.0 * np.count_nonzero(counts >= 1) / n,
         seen_2_pct=100.0 * np.count_nonzero(counts >= 2) / n,
         seen_3_pct=100.0 * np.count_nonzero(counts >= 3) / n,

@@ -153,7 +153,7 @@ def layout_pass(
                 trigger_distance_m,
                 (u_lo, u_hi),
                 end_stations=end_stations,
-            )  # fmt: skip
+            )
         )
 
     segments = _drop_slivers(segments, area_uv, rect)
@@ -302,9 +302,11 @@ def _segments_for_line(
         # Stereo at the ends: the frame whose back edge reaches ``lo`` is the only one that sees
         # it; each extra station one trigger distance further out adds one more view of the edge
         # (a frame is longer than the trigger distance), clipped below by the blocked zones.
-        useful = min(end_stations, math.floor(rect.along_m / trigger_distance_m + 1e-9))
-        p0 -= useful * trigger_distance_m
-        p1 += useful * trigger_distance_m
+        # (only as many as still see the end: the frame must reach it)
+        k_lo = min(end_stations, math.floor((p0 + rect.u_max_m - lo) / trigger_distance_m + 1e-9))
+        k_hi = min(end_stations, math.floor((hi - p1 - rect.u_min_m) / trigger_distance_m + 1e-9))
+        p0 -= max(0, k_lo) * trigger_distance_m
+        p1 += max(0, k_hi) * trigger_distance_m
         for s_lo, s_hi, _, _ in _subtract((p0, p1), holes):
             # The camera-off point lies half a spacing past the last station, whichever way the
             # segment is flown: keep it out of the nearest blocked zone on either side.
@@ -325,6 +327,12 @@ def _segments_for_line(
             s_lo, s_hi = t_lo, t_hi
             length = s_hi - s_lo
             count = max(1, math.ceil(length / trigger_distance_m - 1e-9) + 1) if length > _EPS else 1
+            if count > 1 and length < 0.5 * trigger_distance_m:
+                # Two stations closer than half a trigger distance: an autopilot checking the
+                # distance once per loop cannot hold that; spread them to half a distance (the
+                # camera-off point then reaches at most the blocked zone's buffered edge).
+                pad = (0.5 * trigger_distance_m - length) / 2.0
+                s_lo, s_hi, length = s_lo - pad, s_hi + pad, 0.5 * trigger_distance_m
             spacing = length / (count - 1) if count > 1 else single
             segments.append(
                 Segment(row=row, v_m=v_line, u_first_m=s_lo, spacing_m=spacing, count=count, fill=fill)
@@ -394,9 +402,10 @@ def _fill_stereo(
     end_stations: int,
     rounds: int = 2,
 ) -> list[Segment]:
-    """Fill segments over the parts of the area seen by fewer than two frames (beside exclusions,
-    in the gaps a line leaves around them, in thin parts): each such part, found on a grid of
-    the area, gets a run of its own (with its end stations, so at least two views)."""
+    """Fill segments over the parts of the area seen by fewer than two frames, or three when the
+    forward overlap gives three (beside exclusions, in the gaps a line leaves around them, where a
+    short line was dropped, in thin parts): each such part, found on a grid of the area and
+    along its edges, gets a run of its own (with its end stations, so enough views)."""
     from .coverage import boundary_points, grid_points, view_counts
 
     cell = min(trigger_distance_m, rect.across_m) / 4.0
@@ -404,9 +413,11 @@ def _fill_stereo(
     points = np.vstack([points, boundary_points(area, min(cell, 1.0))])
     if len(points) == 0:
         return segments
+    # Three views where a line's own frames give three (forward overlap of 2/3 or more), else two.
+    need = 3 if 3.0 * trigger_distance_m <= rect.along_m + 1e-9 else 2
     for _ in range(rounds):
         counts = view_counts(points, segments, rect)
-        weak = points[counts < 2]
+        weak = points[counts < need]
         if len(weak) == 0:
             break
         boxes = shapely.box(weak[:, 0] - cell, weak[:, 1] - cell, weak[:, 0] + cell, weak[:, 1] + cell)

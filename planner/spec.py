@@ -388,7 +388,7 @@ def _parse_vehicle(value: Any, where: str) -> VehicleSpec:
             1.0,
             1440.0,
             default=30.0 if vehicle_type is VehicleType.MULTIROTOR else 90.0,
-        ),  # fmt: skip
+        ),
         endurance_s=_endurance_s(value, section),
         reserve_pct=_number(value, "reserve_pct", section, 0.0, 90.0, default=20.0),
         reserve_s=_number(value, "reserve_s", section, 0.0, 86400.0, default=0.0),

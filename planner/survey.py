@@ -198,12 +198,12 @@ def plan_polygons(spec: MissionSpec, polygons: list[Polygon], exclusions: list[P
             camera=camera,
             footprint_scale=scale,
         )
-        needed = terrain_summary.footprint_scale_min
-        if not spec.terrain.follow or needed >= scale - 1e-3:
+        scale_needed = terrain_summary.footprint_scale_min
+        if not spec.terrain.follow or scale_needed >= scale - 1e-3:
             break
         # Lines and triggers spaced for the highest ground in each footprint: plan again with
         # the frame shrunk to its size there (a little below, for the path's own changes).
-        scale = max(0.05, needed - 0.005)
+        scale = max(0.05, scale_needed - 0.005)
     if terrain_summary is not None:
         built, home = built_t, home_t
         _judge_terrain_overlaps(spec, terrain_summary, warnings)
@@ -232,9 +232,15 @@ def plan_polygons(spec: MissionSpec, polygons: list[Polygon], exclusions: list[P
 
     nadir_pass = pass_plans[0]
     if views.seen_2_pct < 100.0 - 1e-9:
+        fix = "; raise front_overlap_pct to at least 50" if survey.front_overlap_pct < 50 else ""
         warnings.append(
             f"{100.0 - views.seen_2_pct:.2f} % of the area is seen by fewer than two nadir frames "
-            f"(no stereo there){'; raise front_overlap_pct to at least 50' if survey.front_overlap_pct < 50 else ''}"
+            f"(no stereo there){fix}"
+        )
+    elif views.edge_weak_points:
+        warnings.append(
+            f"{views.edge_weak_points} points along the area's edge (beside exclusions) are seen by "
+            f"fewer than two nadir frames (no stereo there)"
         )
     target3 = stereo_3_target_pct(nadir_pass.trigger_distance_m, nadir_pass.rect.along_m)
     if views.seen_3_pct < target3:

@@ -340,12 +340,17 @@ def cast_overlap_minimums(
         v = pts[..., 0] * math.cos(t) - pts[..., 1] * math.sin(t)
         mean_u = np.stack([u[:, e].mean(axis=1) for e in edges], axis=1)  # (M, 4)
         mean_v = np.stack([v[:, e].mean(axis=1) for e in edges], axis=1)
-        rows = np.arange(len(u))
         e_front, e_back = np.argmax(mean_u - u_st[:, None], axis=1), np.argmin(mean_u - u_st[:, None], axis=1)
         e_right, e_left = np.argmax(mean_v - v_st[:, None], axis=1), np.argmin(mean_v - v_st[:, None], axis=1)
         edge_idx = np.stack(edges)  # (4, g)
 
-        def edge(k: int, which: NDArray[np.intp]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        def edge(
+            k: int,
+            which: NDArray[np.intp],
+            u: NDArray[np.float64] = u,
+            v: NDArray[np.float64] = v,
+            edge_idx: NDArray[np.intp] = edge_idx,
+        ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
             points = edge_idx[which[k]]
             return u[k, points], v[k, points]
 
@@ -356,8 +361,8 @@ def cast_overlap_minimums(
             for a, b in itertools.pairwise(k):
                 if u_st[b] - u_st[a] > pp.trigger_distance_m * 1.01:
                     continue  # a break in the line (a notch, an exclusion), not a pair
-                fu, fv = edge(a, e_front)
-                bu, bv = edge(b, e_back)
+                fu, fv = edge(int(a), e_front)
+                bu, bv = edge(int(b), e_back)
                 front_all.append(_overlap_share(_edge_overlap(fv, fu, bv, bu), u_st[b] - u_st[a]))
         order = sorted(np.unique(line), key=lambda r: float(np.mean(v_st[line == r])))
         for r0, r1 in itertools.pairwise(order):
@@ -368,8 +373,8 @@ def cast_overlap_minimums(
             for a, b in zip(k0, nearest, strict=True):
                 if abs(u_st[b] - u_st[a]) > pp.trigger_distance_m:
                     continue
-                ru, rv = edge(a, e_right)
-                lu, lv = edge(b, e_left)
+                ru, rv = edge(int(a), e_right)
+                lu, lv = edge(int(b), e_left)
                 side_all.append(_overlap_share(_edge_overlap(ru, rv, lu, lv), v_st[b] - v_st[a]))
     front = 100.0 * min(front_all) if front_all else 100.0
     side = 100.0 * min(side_all) if side_all else 100.0

@@ -31,9 +31,12 @@ _ROWS = (
     ("passes", "pass_count", "{}"),
     ("lines", "line_count", "{}"),
     ("photos", "photo_count", "{:,}"),
+    ("area seen by 2+ nadir frames", "stereo_seen_2_pct", "{:.1f} %"),
+    ("area seen by 3+ nadir frames", "stereo_seen_3_pct", "{:.1f} %"),
     ("flight distance", "flight_distance_m", "{:,.0f} m"),
     ("flight time", "flight_time_s", None),
     ("mission items", "item_count", "{}"),
+    ("mission items the autopilot holds", "max_item_count", "{}"),
 )
 
 

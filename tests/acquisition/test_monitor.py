@@ -636,7 +636,7 @@ def test_gully_flight_records_one_event_per_planned_station(tmp_path: Path, run_
     result: MonitorResult = box["result"]
     assert result.reason is StopReason.LANDED
     n = len(plan.stations)
-    assert len(shots) == n == 565
+    assert len(shots) == n == 628  # the gully plan, with the planner's end stations for stereo
     state = result.state
     assert state.photos_taken == n and state.photos_planned == n
     assert state.missed_stations == () and state.extra_photos == 0
@@ -649,7 +649,10 @@ def test_gully_flight_records_one_event_per_planned_station(tmp_path: Path, run_
     # every event within the trigger distance of its planned station (flight order)
     _, _, dist = GEOD.inv(ev.lon_deg, ev.lat_deg, plan.stations.lon_deg, plan.stations.lat_deg)
     assert np.max(dist) < d
-    assert np.max(dist) < 2.0  # the simulator's GPS noise is 0.3 m RMS
+    # the planner commands each run's distance in ArduPilot's metre less half a loop step, so a
+    # photo may drift along its run by up to 40 % of the spacing (planner/trigger.py); plus the
+    # simulator's GPS noise (0.3 m RMS)
+    assert np.max(dist) < 0.4 * d + 1.0
     rows = read_csv(result.csv_path)
     assert len(rows) == n
     assert [int(r["seq"]) for r in rows] == list(ev.seq) == list(range(1, n + 1))

@@ -206,12 +206,11 @@ def test_the_flown_images_check_agrees_with_the_plan_check(tmp_path: Path) -> No
         ["check", str(photos), "--plan", str(tmp_path / "plan"), "--ground-elevation-m", "300",
          "--cell-m", "1", "--json"],
     )  # fmt: skip
-    # A block this small (3 lines) has its line ends seen by fewer than 3 frames over more
-    # than 10 % of the area: both checks say so, with the same exit code.
-    assert planned.exit_code == flown.exit_code == 1, (planned.output, flown.output)
+    # The planner puts two extra stations beyond each line end, so even this small block (3
+    # lines) is seen by 3 frames or more: both checks pass it, with the same exit code.
+    assert planned.exit_code == flown.exit_code == 0, (planned.output, flown.output)
     p, f = json.loads(planned.stdout), json.loads(flown.stdout)
-    assert len(p["reasons"]) == len(f["reasons"]) == 1, (p["reasons"], f["reasons"])
-    assert "3 or more frames" in p["reasons"][0] and "3 or more frames" in f["reasons"][0]
+    assert p["reasons"] == f["reasons"] == []
     assert f["frames"]["camera_id"] == "parrot-sequoia-rgb" and f["frames"]["attitude_source"] == "xmp"
     assert f["area"]["area_m2"] == pytest.approx(p["area"]["area_m2"], rel=1e-3)
     for views in ("1", "2", "3", "5"):

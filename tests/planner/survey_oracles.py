@@ -170,7 +170,7 @@ def replay_at_loop_rate(
     _, _, legs = _WGS84.inv(lon[:-1], lat[:-1], lon[1:], lat[1:])
     t_nav = np.concatenate([[0.0], np.cumsum(np.asarray(legs) / np.asarray(leg_speed[1:]))])
     dt = 1.0 / loop_hz
-    n_ticks = int(math.ceil(t_nav[-1] / dt)) + 1
+    n_ticks = math.ceil(t_nav[-1] / dt) + 1
     t = np.arange(n_ticks) * dt
     # Straight legs: interpolate in lon/lat within each leg (legs are a few km at most).
     tick_lon = np.interp(t, t_nav, lon)
@@ -290,27 +290,29 @@ def check_plan(plan: SurveyPlan, front_pct: float, side_pct: float, clearance_m:
     for p in plan.passes:
         if p.tilt_deg != 0.0:
             continue
-        line = p.lines[0]
+        line = max(p.lines, key=lambda ln: math.dist(ln.start_xy_m, ln.end_xy_m))
         bearing = math.atan2(line.end_xy_m[0] - line.start_xy_m[0], line.end_xy_m[1] - line.start_xy_m[1])
-        if line.start_xy_m == line.end_xy_m:
-            continue
+        x0, y0 = line.start_xy_m
         mask = stations.pass_index == p.index
-        across = stations.x_m[mask] * math.cos(bearing) - stations.y_m[mask] * math.sin(bearing)
+        across = (stations.x_m[mask] - x0) * math.cos(bearing) - (stations.y_m[mask] - y0) * math.sin(bearing)
         area_v = shapely.get_coordinates(plan.area_xy)
-        area_across = area_v[:, 0] * math.cos(bearing) - area_v[:, 1] * math.sin(bearing)
+        area_across = (area_v[:, 0] - x0) * math.cos(bearing) - (area_v[:, 1] - y0) * math.sin(bearing)
         rows = np.unique(np.round(across, 4))
         assert p.line_spacing_m == pytest.approx(spacing, rel=1e-9)
         width = fp.across_m
         span = float(area_across.max() - area_across.min())
         n_main = max(1, math.ceil((span - width) / spacing - 1e-9) + 1)
-        first, last = float(rows.min()), float(rows.max())
-        assert last - first == pytest.approx((n_main - 1) * spacing, abs=1e-3)
-        margin_lo = area_across.min() - (first - width / 2)
-        margin_hi = (last + width / 2) - area_across.max()
-        assert margin_lo >= -1e-3 and margin_hi >= -1e-3
-        assert margin_lo == pytest.approx(margin_hi, abs=1e-3), "line block not centred on the area"
-        # every row is a main line of that progression or a fill line between them
-        assert first >= area_across.min() - width / 2 and last <= area_across.max() + width / 2
+        # The main lines, from the area alone: the fewest n rows one spacing apart whose frames
+        # span it, centred (equal margins at both edges). The plan's rows must lie on that lattice
+        # (a line whose frames add nothing is dropped: on thin shapes, up to half); fill rows may
+        # lie between.
+        first = (area_across.min() + area_across.max() - (n_main - 1) * spacing) / 2.0
+        lattice = first + np.arange(n_main) * spacing
+        on = np.array([np.min(np.abs(rows - v)) < 1e-3 for v in lattice])
+        assert on.sum() >= max(1, math.ceil(n_main / 2)), (
+            f"{on.sum()} of {n_main} rows where a centred block of lines {spacing:.2f} m apart puts them"
+        )
+        assert area_across.min() - (first - width / 2) >= -1e-6  # the outer frames reach the edges
 
     # 3. along each camera-on run the stations are at most an air base apart
     for p in plan.passes:
@@ -325,11 +327,17 @@ def check_plan(plan: SurveyPlan, front_pct: float, side_pct: float, clearance_m:
             assert np.all(np.diff(along) <= base + 1e-6)
             assert run.length > 0, "a zero-length camera-on line"
 
-    # 4. camera-on segments stay within the area's buffer and out of exclusions
-    half_diagonal = 0.5 * math.hypot(fp.along_m, fp.across_m)
-    buffer = plan.area_xy.buffer(half_diagonal + 1e-6)
+    # 4. photos see the area; camera-on segments stay near it and out of exclusions
     zones = shapely.union_all(plan.exclusions_xy) if plan.exclusions_xy else None
+    # every photo sees some of the area
+    assert np.all(shapely.intersects(shapely.polygons(stations.footprint_xy_m), plan.area_xy.buffer(1e-6)))
     for p in plan.passes:
+        # the camera is on no farther from the area than a frame reaches, plus the half spacing
+        # between the last station and the camera-off point
+        mask = stations.pass_index == p.index
+        cam = np.stack([stations.x_m[mask], stations.y_m[mask]], axis=-1)[:, None, :]
+        reach = float(np.max(np.hypot(*(stations.footprint_xy_m[mask] - cam).transpose(2, 0, 1))))
+        buffer = plan.area_xy.buffer(reach + 0.5 * p.trigger_distance_m + 1e-6)
         for line_obj in p.lines:
             seg = LineString([line_obj.start_xy_m, line_obj.end_xy_m])
             assert buffer.contains(seg), "camera on outside the area's buffer"

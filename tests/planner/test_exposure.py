@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
@@ -37,9 +38,10 @@ def test_textbook_air_base_and_interval_by_hand() -> None:
     assert b == pytest.approx(55.944 * 0.4)
     assert ex.exposure_interval_s(b, 8.0) == pytest.approx(55.944 * 0.4 / 8.0)  # Eq. 3-6
     assert ex.base_height_ratio(b, height) == pytest.approx(0.296, abs=1e-3)
-    assert ex.intersection_angle_deg(b, height) == pytest.approx(
-        math.degrees(2 * math.atan(b / (2 * height)))
-    )
+    # intersection angle: the angle between the rays of the two cameras to the ground point midway
+    ray_a, ray_b = np.array([b / 2, -height]), np.array([-b / 2, -height])
+    cos_angle = ray_a @ ray_b / (np.linalg.norm(ray_a) * np.linalg.norm(ray_b))
+    assert ex.intersection_angle_deg(b, height) == pytest.approx(math.degrees(math.acos(cos_angle)))
 
 
 @pytest.mark.parametrize(
@@ -83,10 +85,20 @@ def test_speed_limits() -> None:
     assert ex.max_speed_for_blur_m_s(2.0, 0.001, 0.5) == pytest.approx(10.0)
 
 
-def test_depth_precision_formula() -> None:
+def test_depth_precision_by_triangulation() -> None:
+    # Two nadir cameras b apart at height h see a ground point between them; half a pixel of error
+    # in one image (along the base: image y for a landscape frame) moves the intersection of the
+    # two rays by sigma_Z in depth.
     b, h = 20.0, 100.0
-    sigma_img_m = ex.SIGMA_IMAGE_PX * CANON.pixel_pitch_y_mm / 1000
-    assert ex.depth_precision_m(CANON, b, h) == pytest.approx((h / b) * (h / 0.020) * sigma_img_m)
+    f = CANON.focal_length_mm / 1000
+    c1, c2, point = np.array([0.0, h]), np.array([b, h]), np.array([b / 2, 0.0])
+    x1 = f * (point[0] - c1[0]) / h
+    x2 = f * (point[0] - c2[0]) / h + ex.SIGMA_IMAGE_PX * CANON.pixel_pitch_y_mm / 1000
+    d1, d2 = np.array([x1, -f]), np.array([x2, -f])
+    s, _ = np.linalg.solve(np.column_stack([d1, -d2]), c2 - c1)
+    sigma_z = abs(float((c1 + s * d1)[1]))
+    assert ex.depth_precision_m(CANON, b, h) == pytest.approx(sigma_z, rel=0.01)
+    assert ex.depth_precision_m(CANON, b, h, Orientation.LANDSCAPE) == pytest.approx(sigma_z, rel=0.01)
 
 
 def test_nadir_footprint_is_the_rectangle() -> None:
@@ -147,3 +159,39 @@ def test_inscribed_rectangle_inside_trapezoid() -> None:
         box = shapely.box(rect.u_min_m, rect.v_min_m, rect.u_max_m, rect.v_max_m)
         assert trapezoid.buffer(1e-6).contains(box)
         assert box.area > share * trapezoid.area
+
+
+def _pixel_gsd_by_construction(camera: Camera, height: float, tilt_deg: float, xs: float, ys: float) -> float:
+    """GSD (cm) of the pixel at sensor point (xs right, ys down, mm) of a camera at ``height`` looking
+    north, tilted ``tilt_deg`` down from the vertical: rays through the pixel's edges, built from
+    the viewing geometry alone (east is the image's right, the far side its top)."""
+    t = math.radians(tilt_deg)
+    axis = np.array([0.0, math.sin(t), -math.cos(t)])  # optical axis: north and down
+    up = np.array([0.0, math.cos(t), math.sin(t)])  # the image's top, toward the far side
+    right = np.array([1.0, 0.0, 0.0])
+    f = camera.focal_length_mm
+
+    def ground(x: float, y: float) -> np.ndarray:
+        ray = f * axis + x * right - y * up
+        return ray[:2] * height / -ray[2]
+
+    px, py = camera.pixel_pitch_x_mm, camera.pixel_pitch_y_mm
+    step_x = np.linalg.norm(ground(xs + px / 2, ys) - ground(xs - px / 2, ys))
+    step_y = np.linalg.norm(ground(xs, ys + py / 2) - ground(xs, ys - py / 2))
+    return 100.0 * float(max(step_x, step_y))
+
+
+def test_oblique_far_gsd_is_the_far_corners_and_nadir_gsd_is_uniform() -> None:
+    camera = get_camera("dji-phantom-4-pro")
+    w, h = camera.sensor_width_mm / 2, camera.sensor_height_mm / 2
+    near, far = near_far_gsd_cm(camera, 70.0, 30.0)
+    corner = _pixel_gsd_by_construction(camera, 70.0, 30.0, w, -h)
+    mid_edge = _pixel_gsd_by_construction(camera, 70.0, 30.0, 0.0, -h)
+    assert far == pytest.approx(corner, rel=1e-9)
+    assert far > mid_edge * 1.01  # the corners are coarser than the middle of the far edge
+    assert near == pytest.approx(_pixel_gsd_by_construction(camera, 70.0, 30.0, 0.0, h), rel=1e-9)
+    # nadir over flat ground: the image plane is parallel to the ground, the GSD is the same at
+    # the corners as at the centre (Eq. 3-4), and that is what is reported
+    centre = _pixel_gsd_by_construction(camera, 70.0, 0.0, 0.0, 0.0)
+    assert _pixel_gsd_by_construction(camera, 70.0, 0.0, w, -h) == pytest.approx(centre, rel=1e-9)
+    assert near_far_gsd_cm(camera, 70.0, 0.0) == pytest.approx((centre, centre), rel=1e-9)

@@ -44,7 +44,9 @@ def test_a_home_high_above_sea_level_writes_heights_above_home(tmp_path: Path) -
     plan = plan_survey(spec)
     write_outputs(plan, tmp_path / "out")
     # QGC WPL 110, read as text: columns index, current, frame, command, p1-p4, lat, lon, alt
-    rows = [line.split("\t") for line in (tmp_path / "out" / "mission.waypoints").read_text().splitlines()[1:]]
+    rows = [
+        line.split("\t") for line in (tmp_path / "out" / "mission.waypoints").read_text().splitlines()[1:]
+    ]
     home, body = rows[0], rows[1:]
     assert float(home[10]) == pytest.approx(412.0)
     survey_alts = []

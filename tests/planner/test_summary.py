@@ -114,7 +114,9 @@ def test_every_summary_figure_against_an_independent_computation(orientation: st
     )
     assert s.direction_deg == pytest.approx(_true_bearing_of_first_line(plan), abs=0.05)
     assert s.pass_count == len(plan.passes) == 1
-    assert s.line_count == len({(int(p), int(ln)) for p, ln in zip(plan.stations.pass_index, plan.stations.line_index)})
+    assert s.line_count == len(
+        {(int(p), int(ln)) for p, ln in zip(plan.stations.pass_index, plan.stations.line_index, strict=True)}
+    )
     fired = replay_at_loop_rate(plan.mission)
     assert s.photo_count == len(plan.stations) == len(fired)
     assert s.item_count == len(plan.mission.items)

@@ -3,6 +3,7 @@ mission's own waypoints (positions and altitudes above home) against the DEM."""
 
 from __future__ import annotations
 
+import itertools
 import math
 from pathlib import Path
 
@@ -194,3 +195,145 @@ def test_cliff_steeper_than_the_vehicle_can_descend_is_refused(tmp_path: Path) -
     )
     with pytest.raises(PlanningError, match="max_descent_rate_m_s"):
         plan_survey(load_spec(spec_file))
+
+
+# --- a synthetic badlands: 12 m ridges every 60 m, parallel to the lines ---------------------------
+RIDGE_HEIGHT_M, RIDGE_PERIOD_M, BADLANDS_GROUND_M = 12.0, 60.0, 400.0
+
+
+def _badlands_z(easting_m: np.ndarray) -> np.ndarray:
+    return BADLANDS_GROUND_M + RIDGE_HEIGHT_M * 0.5 * (1.0 - np.cos(2.0 * np.pi * easting_m / RIDGE_PERIOD_M))
+
+
+def _badlands_spec(tmp_path: Path, follow: bool) -> Path:
+    """A 400 x 300 m block near 42.2 N, its DEM (1 m cells, UTM 30N) made here, lines north-south."""
+    from pyproj import Transformer
+
+    to_utm = Transformer.from_crs("EPSG:4326", "EPSG:32630", always_xy=True)
+    lon0, lat0 = -1.45, 42.2
+    e0, n0 = to_utm.transform(lon0, lat0)
+    e0, n0 = math.floor(e0 / 60.0) * 60.0, math.floor(n0)
+    cells = 1200
+    west, north = e0 - 400.0, n0 + 800.0
+    easting = west + 0.5 + np.arange(cells)
+    z = np.tile(_badlands_z(easting), (cells, 1)).astype("float32")
+    tif = tmp_path / "badlands.tif"
+    with rasterio.open(
+        tif, "w", driver="GTiff", height=cells, width=cells, count=1, dtype="float32",
+        crs="EPSG:32630", transform=from_origin(west, north, 1.0, 1.0),
+    ) as d:  # fmt: skip
+        d.write(z, 1)
+    to_ll = Transformer.from_crs("EPSG:32630", "EPSG:4326", always_xy=True)
+    corners = [
+        to_ll.transform(e0 + dx, n0 + dy) for dx, dy in ((0, 0), (400, 0), (400, 300), (0, 300), (0, 0))
+    ]
+    (tmp_path / "block.geojson").write_text(
+        '{"type": "Polygon", "coordinates": [' + str([list(c) for c in corners]) + "]}"
+    )
+    home_lon, home_lat = to_ll.transform(e0 - 60.0, n0 - 20.0)  # in a valley: ground 400 m
+    spec = tmp_path / "badlands.toml"
+    spec.write_text(
+        f'name = "badlands"\narea = "block.geojson"\n[camera]\nmodel = "canon-eos-350d-20mm"\n'
+        f"[survey]\ngsd_cm = 2.4\nfront_overlap_pct = 80\nside_overlap_pct = 70\nspeed_m_s = 5\n"
+        f"direction_deg = 0\nturnaround_m = 10\n"
+        f'[terrain]\ndem = "badlands.tif"\nfollow = {str(follow).lower()}\ntolerance_m = 2\n'
+        f"accept_overlap_loss = true\n"
+        f"[vehicle]\nhome = [{home_lat}, {home_lon}]\nhome_alt_amsl_m = 400\nmax_alt_agl_m = 150\n"
+        f"max_flight_time_min = 60\n"
+    )
+    return spec
+
+
+def _cast_on_ridges(origin: np.ndarray, ray: np.ndarray, to_easting: object) -> np.ndarray:
+    """Where a ray from ``origin`` (x, y, z AMSL in the plan's frame) meets the ridges, found on the
+    analytic surface (not the raster): fine march, then bisection."""
+    t = np.linspace(0.0, 400.0, 40001)
+    pts = origin[None, :] + t[:, None] * ray[None, :]
+    e = to_easting(pts[:, 0], pts[:, 1])  # type: ignore[operator]
+    below = np.flatnonzero(pts[:, 2] <= _badlands_z(e))[0]
+    lo, hi = t[below - 1], t[below]
+    for _ in range(40):
+        mid = (lo + hi) / 2
+        p = origin + mid * ray
+        if p[2] > _badlands_z(np.array([to_easting(p[0], p[1])]))[0]:  # type: ignore[operator]
+            lo = mid
+        else:
+            hi = mid
+    return origin + hi * ray
+
+
+def test_badlands_sidelap_holds_on_the_ground_when_following(tmp_path: Path) -> None:
+    from pyproj import Transformer
+
+    plan = plan_survey(load_spec(_badlands_spec(tmp_path, follow=True)))
+    terrain = plan.summary.terrain
+    assert terrain is not None
+    # The stations' real footprints, cast here on the ridges themselves: for each station and the
+    # nearest station of the next line, the overlap of their facing image edges across the lines.
+    to_utm = Transformer.from_crs("EPSG:4326", "EPSG:32630", always_xy=True)
+
+    def to_easting(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        lon, lat = plan.frame.to_lonlat(x, y)
+        return np.asarray(to_utm.transform(lon, lat)[0])
+
+    st = plan.stations
+    cam = plan.camera
+    f = cam.focal_length_mm
+    home_ground = plan.home.alt_amsl_m
+    rows = sorted(set(st.line_index.tolist()), key=lambda r: float(np.mean(st.x_m[st.line_index == r])))
+    worst = 100.0
+    for r0, r1 in itertools.pairwise(rows):
+        k0 = np.flatnonzero(st.line_index == r0)[5:-5:7]  # a sample of each line's stations
+        k1 = np.flatnonzero(st.line_index == r1)
+        for a in k0:
+            b = k1[np.argmin(np.abs(st.y_m[k1] - st.y_m[a]))]
+            edges = []
+            for k, side in ((a, 1.0), (b, -1.0)):
+                origin = np.array([st.x_m[k], st.y_m[k], st.alt_rel_home_m[k] + home_ground])
+                # landscape, lines north-south: the image's width lies east-west; the ray through
+                # the middle of the edge that faces the other line (east for a, west for b)
+                ray = np.array([side * cam.sensor_width_mm / 2, 0.0, -f])
+                edges.append(_cast_on_ridges(origin, ray / np.linalg.norm(ray), to_easting)[0])
+            overlap = edges[0] - edges[1]
+            base = st.x_m[b] - st.x_m[a]
+            worst = min(worst, 100.0 * overlap / (overlap + base))
+    assert worst >= 70.0 - 1.0, f"sidelap on the ground {worst:.1f} %"
+    assert terrain["side_overlap_min_pct"] <= worst + 1.0  # type: ignore[operator]
+    assert terrain["side_overlap_min_pct"] >= 70.0 - 1.0  # type: ignore[operator]
+
+
+def test_badlands_at_constant_altitude_reports_the_loss(tmp_path: Path) -> None:
+    plan = plan_survey(load_spec(_badlands_spec(tmp_path, follow=False)))
+    terrain = plan.summary.terrain
+    assert terrain is not None
+    # 12 m ridges under a 75 m flight: the ridge tops are 16 % nearer, the sidelap there is lower
+    assert terrain["side_overlap_min_pct"] < 70.0 - 3.0  # type: ignore[operator]
+    assert any("overlap by as little as" in w and "follow = true" in w for w in plan.warnings)
+
+
+def test_terrain_figures_of_the_summary(terrain_plan: SurveyPlan, dem: Dem) -> None:
+    """summary.json's terrain figures against the mission's own waypoints and the DEM."""
+    terrain = terrain_plan.summary.terrain
+    assert terrain is not None
+    home = terrain_plan.home.alt_amsl_m
+    assert terrain["home_ground_amsl_m"] == pytest.approx(home)
+    # stations: altitude above home from the waypoints' straight legs; height above the DEM
+    st = terrain_plan.stations
+    ground = dem.elevation_at(st.x_m, st.y_m, terrain_plan.frame)
+    agl = st.alt_rel_home_m + home - ground
+    assert terrain["station_alt_agl_min_m"] == pytest.approx(float(agl.min()), abs=1e-6)
+    assert terrain["station_alt_agl_max_m"] == pytest.approx(float(agl.max()), abs=1e-6)
+    # GSD = pixel pitch x height / focal length (Eq. 3-4) at the lowest and highest station
+    camera = terrain_plan.camera
+    pitch = max(camera.pixel_pitch_x_mm, camera.pixel_pitch_y_mm)
+    assert terrain["gsd_min_cm"] == pytest.approx(100 * pitch * agl.min() / camera.focal_length_mm, rel=1e-6)
+    assert terrain["gsd_max_cm"] == pytest.approx(100 * pitch * agl.max() / camera.focal_length_mm, rel=1e-6)
+    # the path: the highest waypoint above home, and the lowest pass over the ground
+    wps = [it for it in terrain_plan.mission.items if it.command == MavCmd.NAV_WAYPOINT]
+    assert terrain["alt_rel_home_max_m"] == pytest.approx(max(w.alt_m for w in wps), abs=0.05)
+    flown, _ = flown_agl(terrain_plan, dem, step_m=1.0)
+    assert terrain["path_alt_agl_min_m"] == pytest.approx(float(flown.min()), abs=0.5)
+    # the frames were spaced for the highest ground they see
+    assert float(terrain["footprint_scale"]) <= float(terrain["footprint_scale_min"]) + 1e-9  # type: ignore[arg-type]
+    assert float(terrain["front_overlap_min_pct"]) >= 80.0 - 1.0  # type: ignore[arg-type]
+    assert float(terrain["side_overlap_min_pct"]) >= 70.0 - 1.0  # type: ignore[arg-type]
