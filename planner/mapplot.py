@@ -126,6 +126,13 @@ def pass_line_count(flight_pass: FlightPass, tolerance_m: float = 0.01) -> int:
             {(round(ln.start_xy_m[0] / tolerance_m), round(ln.start_xy_m[1] / tolerance_m)) for ln in lines}
         )
     ux, uy = dx / norm, dy / norm
+    for line in lines:
+        ex, ey = line.end_xy_m[0] - line.start_xy_m[0], line.end_xy_m[1] - line.start_xy_m[1]
+        length = math.hypot(ex, ey)
+        if length > 0 and abs(ux * ey - uy * ex) / length > 1e-6:
+            # Segments of several bearings (a corridor's lines follow its bends): rows are not
+            # offsets across one direction; count the lines the planner numbered.
+            return len({ln.line_index for ln in lines})
     offsets = sorted(-ux * ln.start_xy_m[1] + uy * ln.start_xy_m[0] for ln in lines)
     rows = 1
     for before, after in itertools.pairwise(offsets):

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import shutil
 from pathlib import Path
 
@@ -229,7 +230,10 @@ def test_the_flown_images_check_agrees_with_the_plan_check(tmp_path: Path) -> No
          "--cell-m", "1", "--json"],
     )  # fmt: skip
     warnings = json.loads(low.stdout)["warnings"]
-    assert any("33 m lower above the ground (median 17.0 m) than the plan's 50.0 m" in w for w in warnings)
+    pattern = r"33 m lower above the ground \(median ([\d.]+) m\) than the plan's 50.0 m"
+    found = [re.search(pattern, w) for w in warnings]
+    medians = [float(m.group(1)) for m in found if m]
+    assert len(medians) == 1 and medians[0] == pytest.approx(17.0, abs=0.5), warnings
 
 
 # --- the plan check is the plan --------------------------------------------------------------------
