@@ -354,8 +354,11 @@ def _read_maps(
     return exif, xmp
 
 
-def read_tags(path: str | os.PathLike[str]) -> ImageTags:
-    """Read the tags of one JPEG. Raises :class:`GeotagError` when the file is unreadable."""
+def _read_file_maps(
+    path: str | os.PathLike[str],
+) -> tuple[dict[str, Any], dict[str, Any], int | None, int | None]:
+    """The EXIF and XMP maps and the pixel size of one JPEG, from its metadata segments only.
+    Raises :class:`GeotagError` when the file is unreadable."""
     _register_namespaces()
     with open(path, "rb") as handle:
         head = handle.read(2)
@@ -372,6 +375,12 @@ def read_tags(path: str | os.PathLike[str]) -> ImageTags:
         height = image.get_pixel_height() or None
     finally:
         image.close()
+    return exif, xmp, width, height
+
+
+def read_tags(path: str | os.PathLike[str]) -> ImageTags:
+    """Read the tags of one JPEG. Raises :class:`GeotagError` when the file is unreadable."""
+    exif, xmp, width, height = _read_file_maps(path)
     return tags_from_maps(str(path), exif, xmp, width_px=width, height_px=height)
 
 
@@ -530,21 +539,7 @@ def camera_tags_from_maps(exif: dict[str, Any], xmp: dict[str, Any]) -> CameraTa
 
 def read_tags_and_camera(path: str | os.PathLike[str]) -> tuple[ImageTags, CameraTags]:
     """:func:`read_tags` and :class:`CameraTags` of one JPEG from one read of its metadata."""
-    _register_namespaces()
-    with open(path, "rb") as handle:
-        head = handle.read(2)
-    if head != b"\xff\xd8":
-        raise GeotagError(f"{path}: not a JPEG file (no SOI marker); remove it from the folder")
-    try:
-        image = pyexiv2.Image(os.fspath(path))
-    except (RuntimeError, ValueError, OSError) as error:
-        raise GeotagError(f"{path}: not a readable image ({error}); remove or replace it") from error
-    try:
-        exif, xmp = _read_maps(image, path)
-        width = image.get_pixel_width() or None
-        height = image.get_pixel_height() or None
-    finally:
-        image.close()
+    exif, xmp, width, height = _read_file_maps(path)
     tags = tags_from_maps(str(path), exif, xmp, width_px=width, height_px=height)
     return tags, camera_tags_from_maps(exif, xmp)
 
