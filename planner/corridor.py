@@ -245,10 +245,23 @@ def _half_plane(point: np.ndarray, normal: np.ndarray, big: float) -> Polygon:
     return Polygon(corners)
 
 
-def _polygonal(geom: shapely.Geometry) -> MultiPolygon:
+def _polygon_parts(geom: shapely.Geometry) -> list[Polygon]:
     parts = [g for g in getattr(geom, "geoms", [geom]) if isinstance(g, Polygon) and not g.is_empty]
     parts += [p for g in getattr(geom, "geoms", [geom]) if isinstance(g, MultiPolygon) for p in g.geoms]
-    return MultiPolygon(parts)
+    return parts
+
+
+def _polygonal(geom: shapely.Geometry) -> MultiPolygon:
+    """The polygons of ``geom`` as one valid MultiPolygon: an intersection can return pieces that
+    overlap or touch along an edge (an invalid MultiPolygon, which GEOS then refuses), so they
+    are merged."""
+    parts = _polygon_parts(geom)
+    if not parts:
+        return MultiPolygon()
+    merged = MultiPolygon(parts)
+    if not merged.is_valid:
+        merged = MultiPolygon(_polygon_parts(shapely.make_valid(shapely.union_all(parts))))
+    return merged
 
 
 def _bearing_deg(a: np.ndarray, b: np.ndarray) -> float:
@@ -521,6 +534,8 @@ def _lay_out(
         v_first = float(vc_arr[0]) + offsets[0]
         if not piece_area.is_empty and piece_area.area > 1e-6:
             area_uv = _rotate(piece_area, bearing)
+            if not area_uv.is_valid:  # rounding in the rotation of a sliver of a bend
+                area_uv = _polygonal(shapely.make_valid(area_uv))
             blocked_uv = _rotate(blocked_xy, bearing) if blocked_xy is not None else None
             lay = layout_pass(
                 area_uv, blocked_uv, rect, step_m, spacing_m, first_line_v_m=v_first, line_count=n_lines

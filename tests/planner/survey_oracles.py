@@ -303,13 +303,15 @@ def check_plan(plan: SurveyPlan, front_pct: float, side_pct: float, clearance_m:
         span = float(area_across.max() - area_across.min())
         n_main = max(1, math.ceil((span - width) / spacing - 1e-9) + 1)
         # The main lines, from the area alone: the fewest n rows one spacing apart whose frames
-        # span it, centred (equal margins at both edges). The plan's rows must lie on that lattice
-        # (a line whose frames add nothing is dropped: on thin shapes, up to half); fill rows may
-        # lie between.
+        # span it, centred (equal margins at both edges). The plan's rows must lie on that lattice;
+        # fill rows may lie between. A line whose frames add nothing is dropped (thin shapes
+        # across the lines): a frame spans 1 / (1 - sidelap) spacings, so the rows kept are at
+        # least the share (1 - sidelap) of the lattice that single coverage needs. A block that is
+        # not centred puts no row on the lattice at all.
         first = (area_across.min() + area_across.max() - (n_main - 1) * spacing) / 2.0
         lattice = first + np.arange(n_main) * spacing
         on = np.array([np.min(np.abs(rows - v)) < 1e-3 for v in lattice])
-        assert on.sum() >= max(1, math.ceil(n_main / 2)), (
+        assert on.sum() >= max(1, math.ceil(n_main * (1.0 - side_pct / 100.0) - 1e-9)), (
             f"{on.sum()} of {n_main} rows where a centred block of lines {spacing:.2f} m apart puts them"
         )
         assert area_across.min() - (first - width / 2) >= -1e-6  # the outer frames reach the edges

@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 import shapely
 from click.testing import CliRunner
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 from shapely.geometry import LineString, Polygon
 from survey_oracles import replay_at_loop_rate, views
@@ -123,8 +123,25 @@ def bent_line(draw: st.DrawFn) -> list[tuple[float, float]]:
     return points
 
 
-@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(
+    max_examples=12,
+    deadline=None,
+    derandomize=True,
+    suppress_health_check=[HealthCheck.function_scoped_fixture],
+)
 @given(xy=bent_line(), width=st.floats(20, 160), front=st.sampled_from([70, 80]))
+@example(  # a narrow corridor whose bend leaves a sliver that rotated into the line frame was invalid
+    xy=[
+        (0.0, 0.0),
+        (-225.06319509623071, 31.95858861740158),
+        (-414.52642245206385, 58.86204272770762),
+        (-530.5914999812621, 543.6332180004028),
+        (-432.90085011094425, 812.2257956217193),
+        (-376.7414385019573, 951.3161277362569),
+    ],
+    width=21.95703125,
+    front=70,
+)
 def test_random_bent_corridors_are_seen_twice_to_the_edges(
     tmp_path: Path, xy: list[tuple[float, float]], width: float, front: int
 ) -> None:
@@ -171,7 +188,12 @@ def test_random_bent_corridors_are_seen_twice_to_the_edges(
     assert len(trig) == 2 * len(plan.passes[0].lines)
 
 
-@settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(
+    max_examples=8,
+    deadline=None,
+    derandomize=True,
+    suppress_health_check=[HealthCheck.function_scoped_fixture],
+)
 @given(xy=bent_line(), where=st.floats(0.2, 0.8), size=st.floats(10, 40))
 def test_camera_never_on_over_an_exclusion(
     tmp_path: Path, xy: list[tuple[float, float]], where: float, size: float

@@ -92,7 +92,12 @@ def _corner_tangents(points: np.ndarray, radius_m: float) -> tuple[np.ndarray, n
     return legs, tangent
 
 
-@settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(
+    max_examples=15,
+    deadline=None,
+    derandomize=True,
+    suppress_health_check=[HealthCheck.function_scoped_fixture],
+)
 @given(
     width=st.floats(150, 700),
     height=st.floats(100, 500),
