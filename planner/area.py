@@ -1,7 +1,9 @@
-"""Loading and validating survey areas: GeoJSON and KML polygons in WGS84.
+"""Loading and validating survey areas: GeoJSON and KML polygons (and corridor centre lines) in
+WGS84.
 
 An area file holds one or more polygons (holes allowed). The area to survey is their union;
-holes are excluded, and so are the extra exclusion polygons a spec lists. Every problem is
+holes are excluded, and so are the extra exclusion polygons a spec lists. A corridor's area
+file holds one LineString, its centre line (:func:`load_centreline`). Every problem is
 reported with the file name and the fix, never as a shapely or JSON traceback.
 """
 
@@ -83,7 +85,8 @@ def _check_ring(coords: Sequence[Sequence[float]], file: Path, what: str) -> lis
     return points
 
 
-def _polygons_from_geojson(file: Path) -> list[Polygon]:
+def _read_geojson(file: Path, what: str) -> dict[str, Any]:
+    """A GeoJSON file's top object, refusing a CRS other than WGS84 lon/lat (RFC 7946)."""
     try:
         data = json.loads(file.read_text(encoding="utf-8"))
     except (UnicodeDecodeError, json.JSONDecodeError) as error:
@@ -96,10 +99,13 @@ def _polygons_from_geojson(file: Path) -> list[Polygon]:
         if name and name not in _CRS84_NAMES:
             raise AreaError(
                 f"{file} declares CRS {name!r}; sfap reads WGS84 lon/lat (RFC 7946): re-export "
-                f"the area in EPSG:4326"
+                f"{what} in EPSG:4326"
             )
-    geometries: list[dict[str, Any]] = []
-    _collect_geometries(data, geometries, file)
+    return data
+
+
+def _polygons_from_geojson(file: Path) -> list[Polygon]:
+    geometries = _geojson_geometries(_read_geojson(file, "the area"), ("Polygon", "MultiPolygon"), file)
     polygons: list[Polygon] = []
     for k, geometry in enumerate(geometries):
         kind = geometry.get("type")
@@ -112,22 +118,29 @@ def _polygons_from_geojson(file: Path) -> list[Polygon]:
     return polygons
 
 
-def _collect_geometries(node: Any, out: list[dict[str, Any]], file: Path) -> None:
-    if not isinstance(node, dict):
-        return
-    kind = node.get("type")
-    if kind == "FeatureCollection":
-        for feature in node.get("features") or []:
-            _collect_geometries(feature, out, file)
-    elif kind == "Feature":
-        _collect_geometries(node.get("geometry"), out, file)
-    elif kind == "GeometryCollection":
-        for geometry in node.get("geometries") or []:
-            _collect_geometries(geometry, out, file)
-    elif kind in ("Polygon", "MultiPolygon"):
-        out.append(node)
-    elif kind is None:
-        raise AreaError(f"{file}: a GeoJSON object has no 'type'")
+def _geojson_geometries(node: Any, kinds: tuple[str, ...], file: Path) -> list[dict[str, Any]]:
+    """Every geometry of one of ``kinds`` in a GeoJSON object, through collections and features."""
+    out: list[dict[str, Any]] = []
+
+    def walk(node: Any) -> None:
+        if not isinstance(node, dict):
+            return
+        kind = node.get("type")
+        if kind == "FeatureCollection":
+            for feature in node.get("features") or []:
+                walk(feature)
+        elif kind == "Feature":
+            walk(node.get("geometry"))
+        elif kind == "GeometryCollection":
+            for geometry in node.get("geometries") or []:
+                walk(geometry)
+        elif kind in kinds:
+            out.append(node)
+        elif kind is None:
+            raise AreaError(f"{file}: a GeoJSON object has no 'type'")
+
+    walk(node)
+    return out
 
 
 def _polygon_from_rings(rings: Any, file: Path, what: str) -> Polygon:
@@ -138,11 +151,15 @@ def _polygon_from_rings(rings: Any, file: Path, what: str) -> Polygon:
     return Polygon(shell, holes)
 
 
-def _polygons_from_kml(file: Path) -> list[Polygon]:
+def _read_kml(file: Path) -> ET.Element:
     try:
-        root = ET.parse(file).getroot()
+        return ET.parse(file).getroot()
     except ET.ParseError as error:
         raise AreaError(f"{file} is not valid KML: {error}") from None
+
+
+def _polygons_from_kml(file: Path) -> list[Polygon]:
+    root = _read_kml(file)
     polygons = []
     for k, element in enumerate(_iter_local(root, "Polygon")):
         what = f"polygon {k + 1}"
@@ -167,6 +184,7 @@ def _iter_local(root: ET.Element, name: str) -> Iterable[ET.Element]:
 
 
 def _kml_ring(boundary: ET.Element, file: Path, what: str) -> list[list[float]]:
+    """The positions of the first <coordinates> below ``boundary`` (lon,lat[,alt] each)."""
     text = next((e.text for e in _iter_local(boundary, "coordinates")), None)
     if not text or not text.strip():
         raise AreaError(f"{file}: {what} has an empty <coordinates>")
@@ -208,28 +226,40 @@ def build_area(
     excluded = shapely.union_all([*holes, *exclusions]) if (holes or exclusions) else None
     area = union.difference(excluded) if excluded is not None else union
     area = shapely.make_valid(area)
-    area = _polygonal(area)
+    area = polygonal(area)
     zones: tuple[Polygon, ...] = ()
     if excluded is not None:
         zones = (
-            tuple(_polygonal(shapely.make_valid(excluded)).geoms)
+            tuple(polygonal(shapely.make_valid(excluded)).geoms)
             if not isinstance(excluded, Polygon)
             else (excluded,)
         )
     return area, zones
 
 
-def _polygonal(geom: shapely.Geometry) -> MultiPolygon:
-    """Keep only the polygonal parts of a geometry, as a MultiPolygon."""
+def polygon_parts(geom: shapely.Geometry) -> list[Polygon]:
+    """The non-empty polygons of any geometry (collections and multi-parts flattened)."""
+    if geom.is_empty:
+        return []
     if isinstance(geom, Polygon):
-        return MultiPolygon([geom])
-    if isinstance(geom, MultiPolygon):
-        return geom
-    parts = [g for g in getattr(geom, "geoms", []) if isinstance(g, Polygon | MultiPolygon)]
-    polys: list[Polygon] = []
-    for part in parts:
-        polys.extend(part.geoms if isinstance(part, MultiPolygon) else [part])
-    return MultiPolygon(polys)
+        return [geom]
+    out: list[Polygon] = []
+    for g in getattr(geom, "geoms", []):
+        out.extend(polygon_parts(g))
+    return out
+
+
+def polygonal(geom: shapely.Geometry) -> MultiPolygon:
+    """The polygons of ``geom`` as one valid MultiPolygon: an intersection or make_valid can
+    return pieces that overlap or touch along an edge (an invalid MultiPolygon, which GEOS then
+    refuses), so those are merged."""
+    parts = polygon_parts(geom)
+    if not parts:
+        return MultiPolygon()
+    merged = MultiPolygon(parts)
+    if not merged.is_valid:
+        merged = MultiPolygon(polygon_parts(shapely.make_valid(shapely.union_all(parts))))
+    return merged
 
 
 def check_area_size(area_m2: float, where: str) -> None:
@@ -244,3 +274,46 @@ def check_area_size(area_m2: float, where: str) -> None:
             f"{where}: the area is {area_m2 / 1e6:.0f} km2, above {MAX_AREA_M2 / 1e6:.0f} km2 "
             f"for one survey; split it into several missions"
         )
+
+
+def load_centreline(path: str | Path) -> list[tuple[float, float]]:
+    """The centre line of a corridor: the one LineString of a GeoJSON or KML file, lon/lat."""
+    file = Path(path)
+    if not file.is_file():
+        raise AreaError(f"corridor centre line {file} does not exist; check the area path in the spec")
+    suffix = file.suffix.lower()
+    lines: list[Any]
+    if suffix in (".geojson", ".json"):
+        lines = []
+        data = _read_geojson(file, "the centre line")
+        for geometry in _geojson_geometries(data, ("LineString", "MultiLineString"), file):
+            coords = geometry.get("coordinates") or []
+            lines.extend([coords] if geometry.get("type") == "LineString" else coords)
+    elif suffix == ".kml":
+        root = _read_kml(file)
+        lines = [_kml_ring(line, file, "the centre line") for line in _iter_local(root, "LineString")]
+    else:
+        raise AreaError(
+            f"corridor centre line {file}: unknown format {suffix!r}; give a GeoJSON (.geojson) or "
+            f"KML (.kml) LineString in WGS84"
+        )
+    if len(lines) != 1:
+        raise AreaError(
+            f"{file} holds {len(lines)} LineStrings; a corridor's area file holds exactly one, its "
+            f"centre line (corridor_width_m is set in the spec)"
+        )
+    points: list[tuple[float, float]] = []
+    for position in lines[0]:
+        if not isinstance(position, list | tuple) or len(position) < 2:
+            raise AreaError(f"{file}: the centre line has a position {position!r} that is not [lon, lat]")
+        lon, lat = float(position[0]), float(position[1])
+        if not (math.isfinite(lon) and math.isfinite(lat) and -180 <= lon <= 180 and -90 <= lat <= 90):
+            raise AreaError(
+                f"{file}: the centre line has a position ({lon}, {lat}) outside WGS84 lon/lat; export "
+                f"it in EPSG:4326"
+            )
+        if not points or (lon, lat) != points[-1]:
+            points.append((lon, lat))
+    if len(points) < 2:
+        raise AreaError(f"{file}: the centre line has fewer than two distinct positions; draw the corridor")
+    return points

@@ -28,28 +28,23 @@ centre line:
 from __future__ import annotations
 
 import dataclasses
-import json
 import logging
 import math
-import xml.etree.ElementTree as ET
-from pathlib import Path
-from typing import Any
 
 import numpy as np
 import shapely
 from shapely.geometry import LineString, MultiPolygon, Polygon
 
 from . import exposure as ex
+from . import survey_steps as steps
 from . import trigger as trig
-from .area import _CRS84_NAMES, _iter_local, build_area, check_area_size, load_polygons
+from .area import load_centreline, load_polygons, polygonal
 from .coverage import ViewShares, boundary_points, grid_points, view_counts
 from .errors import AreaError, SpecError
-from .fixed_wing import fixed_wing_for
 from .footprint import near_far_gsd_cm
-from .geo import LocalFrame, geodesic_area_m2
-from .lines import Segment, layout_pass, split_run
-from .mission import HomePosition
-from .mission_builder import PassPlan, build_mission
+from .geo import LocalFrame
+from .lines import Segment, layout_pass
+from .mission_builder import BuiltMission, PassPlan
 from .plan import FlightPass, PassKind, SurveyPlan
 from .spec import MissionSpec, TriggerMode
 
@@ -59,8 +54,6 @@ log = logging.getLogger(__name__)
 _SIMPLIFY_WIDTH_SHARE = 0.1
 #: ... and at most this share of the frame's width across the line.
 _SIMPLIFY_FRAME_SHARE = 0.2
-#: Plans over a DEM with following: re-spaced for the highest ground (as planner.survey).
-_TERRAIN_ATTEMPTS = 4
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)
@@ -72,96 +65,6 @@ class CorridorLayout:
     width_m: float
     line_offsets_m: tuple[float, ...]  # right of the direction of the centre line
     pieces_xy: tuple[Polygon | MultiPolygon, ...]  # the part of the corridor each segment flies
-
-
-def load_centreline(path: str | Path) -> list[tuple[float, float]]:
-    """The centre line of a corridor: the one LineString of a GeoJSON or KML file, lon/lat."""
-    file = Path(path)
-    if not file.is_file():
-        raise AreaError(f"corridor centre line {file} does not exist; check the area path in the spec")
-    suffix = file.suffix.lower()
-    lines: list[Any]
-    if suffix in (".geojson", ".json"):
-        lines = _geojson_lines(file)
-    elif suffix == ".kml":
-        lines = _kml_lines(file)
-    else:
-        raise AreaError(
-            f"corridor centre line {file}: unknown format {suffix!r}; give a GeoJSON (.geojson) or "
-            f"KML (.kml) LineString in WGS84"
-        )
-    if len(lines) != 1:
-        raise AreaError(
-            f"{file} holds {len(lines)} LineStrings; a corridor's area file holds exactly one, its "
-            f"centre line (corridor_width_m is set in the spec)"
-        )
-    points: list[tuple[float, float]] = []
-    for position in lines[0]:
-        if not isinstance(position, list | tuple) or len(position) < 2:
-            raise AreaError(f"{file}: the centre line has a position {position!r} that is not [lon, lat]")
-        lon, lat = float(position[0]), float(position[1])
-        if not (math.isfinite(lon) and math.isfinite(lat) and -180 <= lon <= 180 and -90 <= lat <= 90):
-            raise AreaError(
-                f"{file}: the centre line has a position ({lon}, {lat}) outside WGS84 lon/lat; export "
-                f"it in EPSG:4326"
-            )
-        if not points or (lon, lat) != points[-1]:
-            points.append((lon, lat))
-    if len(points) < 2:
-        raise AreaError(f"{file}: the centre line has fewer than two distinct positions; draw the corridor")
-    return points
-
-
-def _geojson_lines(file: Path) -> list[Any]:
-    try:
-        data = json.loads(file.read_text(encoding="utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError) as error:
-        raise AreaError(f"{file} is not valid GeoJSON: {error}") from None
-    crs = data.get("crs") if isinstance(data, dict) else None
-    if isinstance(crs, dict):
-        name = str(crs.get("properties", {}).get("name", ""))
-        if name and name not in _CRS84_NAMES:
-            raise AreaError(f"{file} declares CRS {name!r}; re-export the centre line in EPSG:4326")
-    out: list[Any] = []
-
-    def walk(node: Any) -> None:
-        if not isinstance(node, dict):
-            return
-        kind = node.get("type")
-        if kind == "FeatureCollection":
-            for feature in node.get("features") or []:
-                walk(feature)
-        elif kind == "Feature":
-            walk(node.get("geometry"))
-        elif kind == "GeometryCollection":
-            for g in node.get("geometries") or []:
-                walk(g)
-        elif kind == "LineString":
-            out.append(node.get("coordinates") or [])
-        elif kind == "MultiLineString":
-            out.extend(node.get("coordinates") or [])
-
-    walk(data)
-    return out
-
-
-def _kml_lines(file: Path) -> list[Any]:
-    try:
-        root = ET.fromstring(file.read_bytes())
-    except ET.ParseError as error:
-        raise AreaError(f"{file} is not valid KML: {error}") from None
-    out = []
-    for line in _iter_local(root, "LineString"):
-        text = next((e.text for e in _iter_local(line, "coordinates")), None) or ""
-        coords = []
-        for token in text.split():
-            parts = token.split(",")
-            try:
-                coords.append([float(parts[0]), float(parts[1])])
-            except (ValueError, IndexError):
-                raise AreaError(f"{file}: a centre line coordinate {token!r} is not lon,lat[,alt]") from None
-        out.append(coords)
-    return out
 
 
 def check_simple(line_xy: LineString, frame: LocalFrame, where: str) -> None:
@@ -217,15 +120,15 @@ def corridor_layout(
         if taken is not None:
             piece = piece.difference(taken)
         taken = piece if taken is None else taken.union(piece)
-        pieces.append(_polygonal(piece))
+        pieces.append(polygonal(piece))
     rest = corridor.difference(taken) if taken is not None else corridor
-    for part in _polygonal(rest).geoms:
+    for part in polygonal(rest).geoms:
         if part.area < 1e-6:
             continue
         k = int(
             np.argmin([LineString(coords[i : i + 2]).distance(part.centroid) for i in range(len(tangents))])
         )
-        pieces[k] = _polygonal(pieces[k].union(part))
+        pieces[k] = polygonal(pieces[k].union(part))
     return CorridorLayout(
         centre_xy=centre_xy, flown_xy=flown, width_m=width_m, line_offsets_m=offsets, pieces_xy=tuple(pieces)
     )
@@ -245,44 +148,13 @@ def _half_plane(point: np.ndarray, normal: np.ndarray, big: float) -> Polygon:
     return Polygon(corners)
 
 
-def _polygon_parts(geom: shapely.Geometry) -> list[Polygon]:
-    parts = [g for g in getattr(geom, "geoms", [geom]) if isinstance(g, Polygon) and not g.is_empty]
-    parts += [p for g in getattr(geom, "geoms", [geom]) if isinstance(g, MultiPolygon) for p in g.geoms]
-    return parts
-
-
-def _polygonal(geom: shapely.Geometry) -> MultiPolygon:
-    """The polygons of ``geom`` as one valid MultiPolygon: an intersection can return pieces that
-    overlap or touch along an edge (an invalid MultiPolygon, which GEOS then refuses), so they
-    are merged."""
-    parts = _polygon_parts(geom)
-    if not parts:
-        return MultiPolygon()
-    merged = MultiPolygon(parts)
-    if not merged.is_valid:
-        merged = MultiPolygon(_polygon_parts(shapely.make_valid(shapely.union_all(parts))))
-    return merged
-
-
 def _bearing_deg(a: np.ndarray, b: np.ndarray) -> float:
     return math.degrees(math.atan2(b[0] - a[0], b[1] - a[1])) % 360.0
 
 
-def _rotate(geom: shapely.Geometry, direction_deg: float) -> shapely.Geometry:
-    def fn(c: np.ndarray) -> np.ndarray:
-        u, v = ex.to_pass_frame(c[:, 0], c[:, 1], direction_deg)
-        return np.column_stack([u, v])
-
-    return shapely.transform(geom, fn)
-
-
 def plan_corridor(spec: MissionSpec) -> SurveyPlan:
     """Plan a corridor survey (module docstring). Raises SfapError subclasses with the fix."""
-    from .summary import limit_warnings, stereo_3_target_pct, summarize
-    from .survey import _default_home, _judge_terrain_overlaps, _read_dem
-    from .terrain_follow import apply_terrain
-
-    survey, vehicle, camera = spec.survey, spec.vehicle, spec.camera
+    survey = spec.survey
     width = spec.corridor_width_m
     assert width is not None
     where = str(spec.source)
@@ -308,106 +180,48 @@ def plan_corridor(spec: MissionSpec) -> SurveyPlan:
     check_simple(centre_xy, frame, str(spec.area_path))
 
     exclusions = [p for path in spec.exclude_paths for p in load_polygons(path)]
-    corridor_xy = corridor_polygon(centre_xy, width)
-    corridor_lonlat = frame.geometry_to_lonlat(corridor_xy)
-    area_lonlat, zones_lonlat = build_area([corridor_lonlat], exclusions)
-    if area_lonlat.is_empty:
-        raise SpecError(f"{spec.area_path}: nothing is left of the corridor once the exclusions are removed")
-    area_m2 = geodesic_area_m2(area_lonlat)
-    check_area_size(area_m2, str(spec.area_path))
-    area_xy = frame.geometry_to_xy(area_lonlat)
-    zones_xy = tuple(frame.geometry_to_xy(z) for z in zones_lonlat)
-    centroid = area_lonlat.centroid
-    true_north_grid = frame.true_north_grid_bearing_deg(centroid.x, centroid.y)
+    corridor_lonlat = frame.geometry_to_lonlat(corridor_polygon(centre_xy, width))
+    site = steps.project_area(spec, [corridor_lonlat], exclusions, what="corridor", frame=frame)
+    area_xy = site.area_xy
+    alt_agl_m, gsd_cm = steps.flying_height(spec)
 
-    if survey.altitude_agl_m is not None:
-        alt_agl_m = survey.altitude_agl_m
-    else:
-        assert survey.gsd_cm is not None
-        alt_agl_m = camera.height_for_gsd_m(survey.gsd_cm)
-    if alt_agl_m > vehicle.max_alt_agl_m + 1e-9:
-        raise SpecError(
-            f"{where}: that GSD needs a flying height of {alt_agl_m:.1f} m above ground, above the "
-            f"vehicle limit max_alt_agl_m = {vehicle.max_alt_agl_m:g} m; ask for a finer gsd_cm (at most "
-            f"{camera.gsd_cm(vehicle.max_alt_agl_m):.2f} cm at the limit) or raise the limit"
-        )
-    gsd_cm = camera.gsd_cm(alt_agl_m)
-    if vehicle.home_lat_deg is not None and vehicle.home_lon_deg is not None:
-        home = HomePosition(
-            lat_deg=vehicle.home_lat_deg, lon_deg=vehicle.home_lon_deg, alt_amsl_m=vehicle.home_alt_amsl_m
-        )
-        hx, hy = frame.to_xy(home.lon_deg, home.lat_deg)
-        home_xy = (float(hx), float(hy))
-        if area_xy.distance(shapely.Point(home_xy)) > 50_000:
-            raise SpecError(
-                f"{where}: home is more than 50 km from the corridor; home is [lat, lon]: check the order"
-            )
-    else:
+    def default_home() -> tuple[float, float]:
         c0 = centre_xy.coords[0]
-        home_xy = (
-            (float(c0[0]), float(c0[1])) if area_xy.contains(shapely.Point(c0)) else _default_home(area_xy)
-        )
-        lon, lat = frame.to_lonlat(*home_xy)
-        home = HomePosition(lat_deg=float(lat), lon_deg=float(lon), alt_amsl_m=vehicle.home_alt_amsl_m)
-    for zone in zones_xy:
-        if zone.contains(shapely.Point(home_xy)):
-            raise SpecError(f"{where}: home lies inside an exclusion zone; move it out")
-    blocked_xy = (
-        shapely.union_all([z.buffer(survey.exclusion_clearance_m) for z in zones_xy]) if zones_xy else None
-    )
+        inside = area_xy.contains(shapely.Point(c0))
+        return (float(c0[0]), float(c0[1])) if inside else steps.default_home_xy(area_xy)
 
-    dem = _read_dem(spec, area_lonlat, home) if spec.terrain is not None else None
+    home, home_xy = steps.home_position(spec, site, near=area_xy, default_xy=default_home, what="corridor")
+    blocked_xy = steps.blocked_xy(spec, site.zones_xy)
+    dem = steps.read_dem(spec, site.area_lonlat, home) if spec.terrain is not None else None
     warnings: list[str] = []
-    scale = 1.0
-    terrain_summary = None
-    for _attempt in range(_TERRAIN_ATTEMPTS):
+
+    def attempt(scale: float) -> _Attempt:
         warnings.clear()
-        parts = _lay_out(spec, centre_xy, area_xy, blocked_xy, alt_agl_m, gsd_cm, scale, warnings)
-        layout, run_passes, piece_passes, speed_m_s, views, line_of_run, piece_of_run = parts
-        built = build_mission(
-            spec=spec,
-            frame=frame,
-            home=home,
-            home_xy=home_xy,
-            alt_agl_m=alt_agl_m,
-            speed_m_s=speed_m_s,
-            passes=run_passes,
-            zones_xy=zones_xy,
-            true_north_grid_deg=true_north_grid,
-            fixed_wing=fixed_wing_for(spec, speed_m_s, true_north_grid),
+        laid = _lay_out(spec, centre_xy, area_xy, blocked_xy, alt_agl_m, gsd_cm, scale, warnings)
+        built = steps.build(
+            spec, site, home, home_xy, alt_agl_m=alt_agl_m, speed_m_s=laid.speed_m_s, passes=laid.run_passes
         )
         # Stations by piece (its frame, its lines) for the terrain's overlap figures.
         run_of_station = built.stations.pass_index.copy()
         built = dataclasses.replace(
             built,
-            stations=dataclasses.replace(built.stations, pass_index=piece_of_run[run_of_station]),
+            stations=dataclasses.replace(built.stations, pass_index=laid.piece_of_run[run_of_station]),
         )
-        if spec.terrain is None or dem is None:
-            break
-        built_t, home_t, terrain_summary = apply_terrain(
-            built, dem=dem, terrain=spec.terrain, frame=frame, home=home, home_xy=home_xy,
-            alt_agl_m=alt_agl_m, speed_m_s=speed_m_s, max_alt_agl_m=vehicle.max_alt_agl_m,
-            passes=piece_passes, camera=camera, footprint_scale=scale,
-        )  # fmt: skip
-        needed = terrain_summary.footprint_scale_min
-        if not spec.terrain.follow or needed >= scale - 1e-3:
-            break
-        scale = max(0.05, needed - 0.005)
-    if terrain_summary is not None:
-        built, home = built_t, home_t
-        _judge_terrain_overlaps(spec, terrain_summary, warnings)
+        return _Attempt(runs=laid, built=built, run_of_station=run_of_station)
 
-    # One pass for the writers: every run of the corridor, numbered by corridor line.
-    st = built.stations
-    stations = dataclasses.replace(
-        st, pass_index=np.zeros(len(st), np.int32), line_index=line_of_run[run_of_station]
+    done, fit = steps.fit_to_terrain(
+        spec, site, home, home_xy, alt_agl_m=alt_agl_m, dem=dem, attempt=attempt, warnings=warnings
     )
+    laid = done.runs
+    # One pass for the writers: every run of the corridor, numbered by corridor line.
+    line_of_run = laid.line_of_run
     lines = tuple(
         dataclasses.replace(line, pass_index=0, line_index=int(line_of_run[pp.index]))
-        for pp in run_passes
-        for line in built.lines[pp.index]
+        for pp in laid.run_passes
+        for line in fit.built.lines[pp.index]
     )
-    first = piece_passes[0]
+    first = laid.piece_passes[0]
+    true_north_grid = site.true_north_grid_deg
     passes = (
         FlightPass(
             index=0,
@@ -424,27 +238,7 @@ def plan_corridor(spec: MissionSpec) -> SurveyPlan:
             far_gsd_cm=first.far_gsd_cm,
         ),
     )
-    if views.seen_2_pct < 100.0 - 1e-9:
-        warnings.append(f"{100.0 - views.seen_2_pct:.2f} % of the corridor is seen by fewer than two frames")
-    target3 = stereo_3_target_pct(first.trigger_distance_m, first.rect.along_m)
-    if views.seen_3_pct < target3:
-        warnings.append(
-            f"only {views.seen_3_pct:.1f} % of the corridor is seen by three or more frames "
-            f"(target {target3:g} %)"
-        )
-    warnings.extend(
-        limit_warnings(
-            autopilot=vehicle.autopilot,
-            item_count=len(built.mission.items),
-            flight_time_s=built.flight_time_s,
-            max_flight_time_min=vehicle.max_flight_time_min,
-        )
-    )
-    summary = summarize(
-        spec=spec, frame=frame, area_m2=area_m2, alt_agl_m=alt_agl_m, speed_m_s=speed_m_s, nadir=first,
-        passes=piece_passes, built=built, warnings=tuple(warnings), true_north_grid_deg=true_north_grid,
-        views=views, terrain=terrain_summary.as_dict() if terrain_summary is not None else None,
-    )  # fmt: skip
+    layout = laid.layout
     corridor_info: dict[str, object] = {
         "width_m": width,
         "centre_line_length_m": float(centre_xy.length),
@@ -452,31 +246,61 @@ def plan_corridor(spec: MissionSpec) -> SurveyPlan:
         "line_offsets_m": list(layout.line_offsets_m),
         "single_line": len(layout.line_offsets_m) == 1,
     }
-    summary = dataclasses.replace(
-        summary, pass_count=1, line_count=int(line_of_run.max()) + 1 if len(line_of_run) else 0,
-        corridor=corridor_info,
-    )  # fmt: skip
-    for w in warnings:
-        log.warning(w)
-    return SurveyPlan(
-        name=spec.name,
-        camera=camera,
-        orientation=spec.orientation,
-        frame=frame,
-        area_xy=area_xy,
-        area_lonlat=area_lonlat,
-        exclusions_xy=zones_xy,
-        exclusions_lonlat=zones_lonlat,
-        home=home,
-        home_xy_m=home_xy,
-        passes=passes,
-        stations=stations,
-        path_xy_m=built.path_xy_m,
-        path_lonlat_deg=built.path_lonlat_deg,
-        mission=built.mission,
-        summary=summary,
-        warnings=tuple(warnings),
+    n_stations = len(fit.built.stations)
+    return steps.finish_plan(
+        spec,
+        site,
+        fit,
+        home_xy,
+        alt_agl_m=alt_agl_m,
+        speed_m_s=laid.speed_m_s,
+        pass_plans=laid.piece_passes,
+        views=laid.views,
+        flight_passes=passes,
+        warnings=warnings,
+        what="corridor",
+        frames="frames",
+        logger=log,
+        stations_replaced={
+            "pass_index": np.zeros(n_stations, np.int32),
+            "line_index": line_of_run[done.run_of_station],
+        },
+        summary_replaced={
+            "pass_count": 1,
+            "line_count": int(line_of_run.max()) + 1 if len(line_of_run) else 0,
+            "corridor": corridor_info,
+        },
     )
+
+
+@dataclasses.dataclass(frozen=True, kw_only=True)
+class _Runs:
+    """The corridor laid out at one footprint scale."""
+
+    layout: CorridorLayout
+    run_passes: list[PassPlan]  # one per run, in flight order
+    piece_passes: list[PassPlan]  # one per piece (all its runs): what terrain overlaps judge
+    speed_m_s: float
+    views: ViewShares
+    line_of_run: np.ndarray  # per run: its corridor line number
+    piece_of_run: np.ndarray  # per run: its piece
+
+
+@dataclasses.dataclass(frozen=True, kw_only=True)
+class _Attempt:
+    """The runs built into a mission whose stations are numbered by piece."""
+
+    runs: _Runs
+    built: BuiltMission
+    run_of_station: np.ndarray  # per station: its run
+
+    @property
+    def terrain_passes(self) -> list[PassPlan]:
+        return self.runs.piece_passes
+
+    @property
+    def speed_m_s(self) -> float:
+        return self.runs.speed_m_s
 
 
 def _lay_out(
@@ -488,27 +312,23 @@ def _lay_out(
     gsd_cm: float,
     scale: float,
     warnings: list[str],
-) -> tuple[CorridorLayout, list[PassPlan], list[PassPlan], float, ViewShares, np.ndarray, np.ndarray]:
-    """Runs of every piece; returns the layout, one PassPlan per run in flight order, one per
-    piece (all its runs), the speed, the corridor's view shares, and per run its corridor line
-    number and its piece."""
-    from .survey import _check_speed, _PassDef
+) -> _Runs:
+    """Runs of every piece: the layout, one PassPlan per run in flight order, one per piece (all
+    its runs), the speed, the corridor's view shares, and per run its corridor line number and
+    its piece."""
 
     survey, camera = spec.survey, spec.camera
     assert spec.corridor_width_m is not None
     hover = survey.trigger is TriggerMode.HOVER
-    flat = ex.frame_rectangle(camera, alt_agl_m, 0.0, ex.up_bearing_deg(0.0, spec.orientation), 0.0)
-    rect = ex.FrameRectangle(
-        u_min_m=flat.u_min_m * scale, u_max_m=flat.u_max_m * scale,
-        v_min_m=flat.v_min_m * scale, v_max_m=flat.v_max_m * scale,
-    )  # fmt: skip
+    up = ex.up_bearing_deg(0.0, spec.orientation)
+    rect = ex.frame_rectangle(camera, alt_agl_m, 0.0, up, 0.0).scaled(scale)
     trigger_m = ex.air_base_m(rect.along_m, survey.front_overlap_pct)
     spacing_m = ex.air_base_m(rect.across_m, survey.side_overlap_pct)
-    pdef = _PassDef(
+    pdef = steps.PassDef(
         kind=PassKind.NADIR, name="corridor", direction_deg=0.0, tilt_deg=0.0, look_heading_deg=None,
         front_overlap_pct=survey.front_overlap_pct, side_overlap_pct=survey.side_overlap_pct,
     )  # fmt: skip
-    speed_m_s = _check_speed(spec, pdef, trigger_m, alt_agl_m, survey.speed_m_s, warnings)
+    speed_m_s = steps.check_speed(spec, pdef, trigger_m, alt_agl_m, survey.speed_m_s, warnings)
     layout = corridor_layout(centre_xy, spec.corridor_width_m, rect.across_m, spacing_m)
     offsets = layout.line_offsets_m
     n_lines = len(offsets)
@@ -528,25 +348,19 @@ def _lay_out(
     piece_segments: list[tuple[Segment, ...]] = []
     for i, piece in enumerate(layout.pieces_xy):
         bearing = _bearing_deg(coords[i], coords[i + 1])
-        piece_area = _polygonal(piece.intersection(area_xy))
+        piece_area = polygonal(piece.intersection(area_xy))
         segments: tuple[Segment, ...] = ()
         _, vc_arr = ex.to_pass_frame(coords[i : i + 1, 0], coords[i : i + 1, 1], bearing)
         v_first = float(vc_arr[0]) + offsets[0]
         if not piece_area.is_empty and piece_area.area > 1e-6:
-            area_uv = _rotate(piece_area, bearing)
+            area_uv = ex.geometry_to_pass_frame(piece_area, bearing)
             if not area_uv.is_valid:  # rounding in the rotation of a sliver of a bend
-                area_uv = _polygonal(shapely.make_valid(area_uv))
-            blocked_uv = _rotate(blocked_xy, bearing) if blocked_xy is not None else None
+                area_uv = polygonal(shapely.make_valid(area_uv))
+            blocked_uv = ex.geometry_to_pass_frame(blocked_xy, bearing) if blocked_xy is not None else None
             lay = layout_pass(
                 area_uv, blocked_uv, rect, step_m, spacing_m, first_line_v_m=v_first, line_count=n_lines
             )
-            segments = lay.segments
-            if not hover:
-                segments = tuple(
-                    part
-                    for seg in segments
-                    for part in split_run(seg, trig.max_run_stations(seg.spacing_m, speed_m_s))
-                )
+            segments = lay.segments if hover else trig.split_for_trigger(lay.segments, speed_m_s)
             if lay.uncovered_m2 > 0:
                 warnings.append(
                     f"corridor segment {i + 1}: {lay.uncovered_m2:.0f} m2 beside exclusion zones cannot be "
@@ -600,9 +414,9 @@ def _lay_out(
     if not run_passes:
         raise SpecError(f"{spec.source}: no line of the corridor can be flown (the exclusions cover it)")
     views = corridor_views(area_xy, piece_passes, rect, min(trigger_m, spacing_m))
-    return (
-        layout, run_passes, piece_passes, speed_m_s, views,
-        np.asarray(line_of_run, np.int32), np.asarray(piece_of_run, np.int32),
+    return _Runs(
+        layout=layout, run_passes=run_passes, piece_passes=piece_passes, speed_m_s=speed_m_s, views=views,
+        line_of_run=np.asarray(line_of_run, np.int32), piece_of_run=np.asarray(piece_of_run, np.int32),
     )  # fmt: skip
 
 

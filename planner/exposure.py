@@ -18,6 +18,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+import shapely
 
 from .camera import Camera, Orientation
 from .footprint import footprint_corners
@@ -44,11 +45,28 @@ class FrameRectangle:
     def across_m(self) -> float:
         return self.v_max_m - self.v_min_m
 
+    def scaled(self, scale: float) -> FrameRectangle:
+        """The rectangle of a frame ``scale`` times as large (a footprint on higher ground)."""
+        return FrameRectangle(
+            u_min_m=self.u_min_m * scale, u_max_m=self.u_max_m * scale,
+            v_min_m=self.v_min_m * scale, v_max_m=self.v_max_m * scale,
+        )  # fmt: skip
+
 
 def to_pass_frame(x: np.ndarray, y: np.ndarray, direction_deg: float) -> tuple[np.ndarray, np.ndarray]:
     """Rotate (x east, y north) into (u along bearing ``direction_deg``, v to its right)."""
     t = math.radians(direction_deg)
     return x * math.sin(t) + y * math.cos(t), x * math.cos(t) - y * math.sin(t)
+
+
+def geometry_to_pass_frame(geom: shapely.Geometry, direction_deg: float) -> shapely.Geometry:
+    """A shapely geometry in (x east, y north) rotated into the pass frame (:func:`to_pass_frame`)."""
+
+    def rotate(coords: np.ndarray) -> np.ndarray:
+        u, v = to_pass_frame(coords[:, 0], coords[:, 1], direction_deg)
+        return np.column_stack([u, v])
+
+    return shapely.transform(geom, rotate)
 
 
 def from_pass_frame(u: np.ndarray, v: np.ndarray, direction_deg: float) -> tuple[np.ndarray, np.ndarray]:

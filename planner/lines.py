@@ -27,13 +27,14 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 import shapely
 from shapely.geometry import LineString, MultiPolygon, Polygon, box
 
+from .area import polygon_parts
 from .exposure import FrameRectangle
 
 #: Extra stations beyond each unblocked end of a run: the area's edges are then seen by three
@@ -211,9 +212,13 @@ def split_run(seg: Segment, max_stations: int) -> list[Segment]:
 def _u_intervals(geom: shapely.Geometry) -> list[tuple[float, float]]:
     """Union of the u-extents of the polygonal parts of ``geom``, sorted."""
     parts = [g for g in getattr(geom, "geoms", [geom]) if not g.is_empty and g.area > 0]
-    spans = sorted((g.bounds[0], g.bounds[2]) for g in parts)
+    return _merged((g.bounds[0], g.bounds[2]) for g in parts)
+
+
+def _merged(spans: Iterable[tuple[float, float]]) -> list[tuple[float, float]]:
+    """The union of (lo, hi) intervals, sorted; intervals within _EPS of each other merge."""
     merged: list[tuple[float, float]] = []
-    for lo, hi in spans:
+    for lo, hi in sorted(spans):
         if merged and lo <= merged[-1][1] + _EPS:
             merged[-1] = (merged[-1][0], max(merged[-1][1], hi))
         else:
@@ -237,14 +242,7 @@ def _blocked_u(
             continue
         xs = [c[0] for c in g.coords]
         spans.append((min(xs), max(xs)))
-    spans.sort()
-    merged: list[tuple[float, float]] = []
-    for lo, hi in spans:
-        if merged and lo <= merged[-1][1] + _EPS:
-            merged[-1] = (merged[-1][0], max(merged[-1][1], hi))
-        else:
-            merged.append((lo, hi))
-    return merged
+    return _merged(spans)
 
 
 def _subtract(
@@ -375,7 +373,7 @@ def _fill_residual(
     """Add fill segments for area left uncovered; return them and the area still uncovered."""
     residual = _residual(segments, area, rect)
     for _ in range(rounds):
-        pieces = [p for p in _polygons(residual) if p.area > _RESIDUAL_NOISE_M2]
+        pieces = [p for p in polygon_parts(residual) if p.area > _RESIDUAL_NOISE_M2]
         if not pieces:
             return segments, 0.0
         added = False
@@ -388,7 +386,7 @@ def _fill_residual(
         residual = _residual(segments, area, rect)
         if not added:
             break
-    leftover = sum(p.area for p in _polygons(residual) if p.area > _RESIDUAL_NOISE_M2)
+    leftover = sum(p.area for p in polygon_parts(residual) if p.area > _RESIDUAL_NOISE_M2)
     return segments, leftover
 
 
@@ -421,7 +419,7 @@ def _fill_stereo(
         if len(weak) == 0:
             break
         boxes = shapely.box(weak[:, 0] - cell, weak[:, 1] - cell, weak[:, 0] + cell, weak[:, 1] + cell)
-        pieces = _polygons(shapely.union_all(boxes).intersection(area))
+        pieces = polygon_parts(shapely.union_all(boxes).intersection(area))
         added = False
         for piece in pieces:
             if piece.area <= _RESIDUAL_NOISE_M2:
@@ -472,21 +470,10 @@ def _slice_by_height(piece: Polygon, height: float) -> list[Polygon]:
     out: list[Polygon] = []
     for k in range(n):
         part = piece.intersection(box(u0 - 1, v0 + k * step, u1 + 1, v0 + (k + 1) * step))
-        out.extend(p for p in _polygons(part) if p.area > _RESIDUAL_NOISE_M2)
+        out.extend(p for p in polygon_parts(part) if p.area > _RESIDUAL_NOISE_M2)
     return out
 
 
 def _residual(segments: Sequence[Segment], area: shapely.Geometry, rect: FrameRectangle) -> shapely.Geometry:
     covered = shapely.union_all([s.rectangle(rect) for s in segments]) if segments else None
     return area if covered is None else area.difference(covered)
-
-
-def _polygons(geom: shapely.Geometry) -> list[Polygon]:
-    if geom.is_empty:
-        return []
-    if isinstance(geom, Polygon):
-        return [geom]
-    out: list[Polygon] = []
-    for g in getattr(geom, "geoms", []):
-        out.extend(_polygons(g))
-    return out

@@ -10,6 +10,9 @@ The steps, each in its own module:
    zones (planner.route);
 5. mission: the items an autopilot flies, and every station exactly where the trigger plan
    fires it (planner.mission_builder).
+
+The steps a corridor shares (area, height, home, speed, terrain, the plan from the built
+mission) are planner.survey_steps.
 """
 
 from __future__ import annotations
@@ -24,35 +27,19 @@ import shapely
 from shapely.geometry import MultiPolygon, Polygon
 
 from . import exposure as ex
+from . import survey_steps as steps
 from . import trigger as trig
-from .area import build_area, check_area_size, load_polygons
-from .camera import Orientation
+from .area import load_polygons
 from .coverage import ViewShares, view_shares
-from .errors import AreaError, PlanningError, SpecError
-from .fixed_wing import fixed_wing_for
+from .errors import SpecError
 from .footprint import near_far_gsd_cm, tilted_gsd_cm
-from .geo import LocalFrame, geodesic_area_m2
-from .lines import layout_pass, split_run
-from .mission import HomePosition, VehicleType
-from .mission_builder import PassPlan, build_mission
+from .lines import layout_pass
+from .mission import VehicleType
+from .mission_builder import BuiltMission, PassPlan
 from .plan import FlightPass, PassKind, PlanLayout, SurveyPlan
 from .spec import MissionSpec, TriggerMode
-from .terrain import Dem
-from .terrain_follow import TerrainSummary, apply_terrain
 
 log = logging.getLogger(__name__)
-
-
-@dataclass(frozen=True, kw_only=True)
-class _PassDef:
-    kind: PassKind
-    name: str
-    direction_deg: float
-    tilt_deg: float
-    look_heading_deg: float | None
-    front_overlap_pct: float
-    side_overlap_pct: float
-    alt_agl_m: float | None = None  # a multi-scale pass at its own height ([[survey.scale]])
 
 
 def plan_survey(spec: MissionSpec) -> SurveyPlan:
@@ -78,69 +65,19 @@ def plan_polygons(spec: MissionSpec, polygons: list[Polygon], exclusions: list[P
     """Plan over polygons already loaded (lon/lat degrees); :func:`plan_survey` reads them from
     the spec's files."""
     survey = spec.survey
-    vehicle = spec.vehicle
-    camera = spec.camera
     warnings: list[str] = []
 
-    # 1. area --------------------------------------------------------------------------------------
-    area_lonlat, zones_lonlat = build_area(polygons, exclusions)
-    if area_lonlat.is_empty:
-        raise SpecError(f"{spec.area_path}: nothing is left of the area once the exclusions are removed")
-    west, _, east, _ = area_lonlat.bounds
-    if east - west > 180.0:
-        raise AreaError(
-            f"{spec.area_path}: the area spans longitudes {west:.4f} to {east:.4f}: it crosses the "
-            f"antimeridian (180 degrees), which sfap does not plan across; split it at 180 degrees "
-            f"and plan each side as its own mission"
-        )
-    centroid = area_lonlat.centroid
-    frame = LocalFrame.utm_for(centroid.x, centroid.y)
-    area_m2 = geodesic_area_m2(area_lonlat)
-    check_area_size(area_m2, str(spec.area_path))
-    area_xy = frame.geometry_to_xy(area_lonlat)
-    zones_xy = tuple(frame.geometry_to_xy(z) for z in zones_lonlat)
-    assert isinstance(area_xy, Polygon | MultiPolygon)
-
-    # 2. height and GSD ----------------------------------------------------------------------------
-    if survey.altitude_agl_m is not None:
-        alt_agl_m = survey.altitude_agl_m
-    else:
-        assert survey.gsd_cm is not None
-        alt_agl_m = camera.height_for_gsd_m(survey.gsd_cm)
-    if alt_agl_m > vehicle.max_alt_agl_m + 1e-9:
-        needed = f"{alt_agl_m:.1f} m above ground"
-        raise SpecError(
-            f"{spec.source}: that GSD needs a flying height of {needed}, above the vehicle limit "
-            f"max_alt_agl_m = {vehicle.max_alt_agl_m:g} m; ask for a finer gsd_cm (at most "
-            f"{camera.gsd_cm(vehicle.max_alt_agl_m):.2f} cm at the limit) or raise the limit"
-        )
-    gsd_cm = camera.gsd_cm(alt_agl_m)
-
-    # home
-    if vehicle.home_lat_deg is not None and vehicle.home_lon_deg is not None:
-        home = HomePosition(
-            lat_deg=vehicle.home_lat_deg,
-            lon_deg=vehicle.home_lon_deg,
-            alt_amsl_m=vehicle.home_alt_amsl_m,
-        )
-        hx, hy = frame.to_xy(home.lon_deg, home.lat_deg)
-        home_xy = (float(hx), float(hy))
-        if math.dist(home_xy, (area_xy.centroid.x, area_xy.centroid.y)) > 50_000:
-            raise SpecError(
-                f"{spec.source}: home {vehicle.home_lat_deg}, {vehicle.home_lon_deg} is more than "
-                f"50 km from the area; home is [lat, lon]: check the order"
-            )
-    else:
-        home_xy = _default_home(area_xy)
-        lon, lat = frame.to_lonlat(*home_xy)
-        home = HomePosition(lat_deg=float(lat), lon_deg=float(lon), alt_amsl_m=vehicle.home_alt_amsl_m)
-    for zone in zones_xy:
-        if zone.contains(shapely.Point(home_xy)):
-            raise SpecError(f"{spec.source}: home lies inside an exclusion zone; move it out")
+    # 1. area and 2. height, GSD and home -----------------------------------------------------------
+    site = steps.project_area(spec, polygons, exclusions, what="area")
+    area_xy = site.area_xy
+    alt_agl_m, gsd_cm = steps.flying_height(spec)
+    home, home_xy = steps.home_position(
+        spec, site, near=area_xy.centroid, default_xy=lambda: steps.default_home_xy(area_xy), what="area"
+    )
 
     # 3. passes --------------------------------------------------------------------------------
     # Bearings in the spec and in every output are true bearings; geometry uses grid bearings.
-    true_north_grid = frame.true_north_grid_bearing_deg(centroid.x, centroid.y)
+    true_north_grid = site.true_north_grid_deg
     if survey.direction_deg is not None:
         direction = (survey.direction_deg + true_north_grid) % 180.0
     else:
@@ -154,60 +91,26 @@ def plan_polygons(spec: MissionSpec, polygons: list[Polygon], exclusions: list[P
                 f"{spec.source}: [[survey.scale]] passes are not planned over a [terrain] DEM yet; "
                 f"plan each height as its own mission, or remove [terrain]"
             )
-        pass_defs += [_PassDef(**fields) for fields in scale_pass_defs(spec, direction)]
+        pass_defs += [steps.PassDef(**fields) for fields in scale_pass_defs(spec, direction)]
 
-    blocked_xy = (
-        shapely.union_all([z.buffer(survey.exclusion_clearance_m) for z in zones_xy]) if zones_xy else None
-    )
-    warnings_before_passes = len(warnings)
-    dem = _read_dem(spec, area_lonlat, home) if spec.terrain is not None else None
-    scale = 1.0  # footprint scale at the highest ground under the frames (terrain following)
-    for _attempt in range(_TERRAIN_ATTEMPTS):
-        del warnings[warnings_before_passes:]
-        used_scale = scale  # the footprint scale of the passes built in this attempt
+    blocked_xy = steps.blocked_xy(spec, site.zones_xy)
+    dem = steps.read_dem(spec, site.area_lonlat, home) if spec.terrain is not None else None
+
+    def attempt(scale: float) -> _Attempt:
+        del warnings[:]
         pass_plans, views, speed_m_s = _lay_out_passes(
             spec, pass_defs, area_xy, blocked_xy, alt_agl_m, gsd_cm, scale, warnings
         )
         # 4-5. route, mission and stations --------------------------------------------------------
-        built = build_mission(
-            spec=spec,
-            frame=frame,
-            home=home,
-            home_xy=home_xy,
-            alt_agl_m=alt_agl_m,
-            speed_m_s=speed_m_s,
-            passes=pass_plans,
-            zones_xy=zones_xy,
-            true_north_grid_deg=true_north_grid,
-            fixed_wing=fixed_wing_for(spec, speed_m_s, true_north_grid),
+        built = steps.build(
+            spec, site, home, home_xy, alt_agl_m=alt_agl_m, speed_m_s=speed_m_s, passes=pass_plans
         )
-        terrain_summary = None
-        if spec.terrain is None or dem is None:
-            break
-        built_t, home_t, terrain_summary = apply_terrain(
-            built,
-            dem=dem,
-            terrain=spec.terrain,
-            frame=frame,
-            home=home,
-            home_xy=home_xy,
-            alt_agl_m=alt_agl_m,
-            speed_m_s=speed_m_s,
-            max_alt_agl_m=spec.vehicle.max_alt_agl_m,
-            passes=pass_plans,
-            camera=camera,
-            footprint_scale=scale,
-        )
-        scale_needed = terrain_summary.footprint_scale_min
-        if not spec.terrain.follow or scale_needed >= scale - 1e-3:
-            break
-        # Lines and triggers spaced for the highest ground in each footprint: plan again with
-        # the frame shrunk to its size there (a little below, for the path's own changes).
-        scale = max(0.05, scale_needed - 0.005)
-    if terrain_summary is not None:
-        built, home = built_t, home_t
-        _judge_terrain_overlaps(spec, terrain_summary, warnings)
+        return _Attempt(built=built, terrain_passes=pass_plans, views=views, speed_m_s=speed_m_s)
 
+    laid, fit = steps.fit_to_terrain(
+        spec, site, home, home_xy, alt_agl_m=alt_agl_m, dem=dem, attempt=attempt, warnings=warnings
+    )
+    pass_plans = laid.terrain_passes
     passes = tuple(
         FlightPass(
             index=p.index,
@@ -221,97 +124,53 @@ def plan_polygons(spec: MissionSpec, polygons: list[Polygon], exclusions: list[P
             alt_agl_m=p.alt_agl_m if p.alt_agl_m is not None else alt_agl_m,
             line_spacing_m=p.line_spacing_m,
             trigger_distance_m=p.trigger_distance_m,
-            lines=built.lines[p.index],
+            lines=fit.built.lines[p.index],
             near_gsd_cm=p.near_gsd_cm,
             far_gsd_cm=p.far_gsd_cm,
         )
         for p in pass_plans
     )
-
-    from .summary import limit_warnings, stereo_3_target_pct, summarize  # reads the whole plan
-
-    nadir_pass = pass_plans[0]
-    if views.seen_2_pct < 100.0 - 1e-9:
-        fix = "; raise front_overlap_pct to at least 50" if survey.front_overlap_pct < 50 else ""
-        warnings.append(
-            f"{100.0 - views.seen_2_pct:.2f} % of the area is seen by fewer than two nadir frames "
-            f"(no stereo there){fix}"
-        )
-    elif views.edge_weak_points:
-        warnings.append(
-            f"{views.edge_weak_points} points along the area's edge (beside exclusions) are seen by "
-            f"fewer than two nadir frames (no stereo there)"
-        )
-    target3 = stereo_3_target_pct(nadir_pass.trigger_distance_m, nadir_pass.rect.along_m)
-    if views.seen_3_pct < target3:
-        warnings.append(
-            f"only {views.seen_3_pct:.1f} % of the area is seen by three or more nadir frames "
-            f"(target {target3:g} %)"
-        )
-    warnings.extend(
-        limit_warnings(
-            autopilot=vehicle.autopilot,
-            item_count=len(built.mission.items),
-            flight_time_s=built.flight_time_s,
-            max_flight_time_min=vehicle.max_flight_time_min,
-        )
-    )
-
-    nadir = pass_plans[0]
-    summary = summarize(
-        spec=spec,
-        frame=frame,
-        area_m2=area_m2,
+    fix = "; raise front_overlap_pct to at least 50" if survey.front_overlap_pct < 50 else ""
+    return steps.finish_plan(
+        spec,
+        site,
+        fit,
+        home_xy,
         alt_agl_m=alt_agl_m,
-        speed_m_s=speed_m_s,
-        nadir=nadir,
-        passes=pass_plans,
-        built=built,
-        warnings=tuple(warnings),
-        true_north_grid_deg=true_north_grid,
-        views=views,
-        terrain=terrain_summary.as_dict() if terrain_summary is not None else None,
-    )
-    for w in warnings:
-        log.warning(w)
-    return SurveyPlan(
-        name=spec.name,
-        camera=camera,
-        orientation=spec.orientation,
-        frame=frame,
-        area_xy=area_xy,
-        area_lonlat=area_lonlat,
-        exclusions_xy=zones_xy,
-        exclusions_lonlat=zones_lonlat,
-        home=home,
-        home_xy_m=home_xy,
-        passes=passes,
-        stations=built.stations,
-        path_xy_m=built.path_xy_m,
-        path_lonlat_deg=built.path_lonlat_deg,
-        mission=built.mission,
-        summary=summary,
-        warnings=tuple(warnings),
+        speed_m_s=laid.speed_m_s,
+        pass_plans=pass_plans,
+        views=laid.views,
+        flight_passes=passes,
+        warnings=warnings,
+        what="area",
+        frames="nadir frames",
+        few_views_note=f" (no stereo there){fix}",
+        logger=log,
         layout=PlanLayout(
             spec=spec,
             alt_agl_m=alt_agl_m,
-            speed_m_s=speed_m_s,
+            speed_m_s=laid.speed_m_s,
             pass_plans=tuple(pass_plans),
             true_north_grid_deg=true_north_grid,
             dem=dem,
-            footprint_scale=used_scale,
+            footprint_scale=fit.footprint_scale,
         ),
     )
 
 
-#: Plans over a DEM with following: the first at the flat-ground spacing, then re-spaced for
-#: the highest ground under the frames until the footprints cast on the DEM keep the overlaps.
-_TERRAIN_ATTEMPTS = 4
+@dataclass(frozen=True, kw_only=True)
+class _Attempt:
+    """The passes of a block laid out at one footprint scale and built (planner.survey_steps)."""
+
+    built: BuiltMission
+    terrain_passes: list[PassPlan]
+    views: ViewShares
+    speed_m_s: float
 
 
 def _lay_out_passes(
     spec: MissionSpec,
-    pass_defs: list[_PassDef],
+    pass_defs: list[steps.PassDef],
     area_xy: Polygon | MultiPolygon,
     blocked_xy: shapely.Geometry | None,
     alt_agl_m: float,
@@ -333,26 +192,18 @@ def _lay_out_passes(
             else ex.up_bearing_deg(pdef.direction_deg, spec.orientation)
         )
         pass_alt_m = pdef.alt_agl_m if pdef.alt_agl_m is not None else alt_agl_m
-        flat = ex.frame_rectangle(camera, pass_alt_m, pdef.direction_deg, up, pdef.tilt_deg)
-        rect = ex.FrameRectangle(
-            u_min_m=flat.u_min_m * scale, u_max_m=flat.u_max_m * scale,
-            v_min_m=flat.v_min_m * scale, v_max_m=flat.v_max_m * scale,
-        )  # fmt: skip
+        rect = ex.frame_rectangle(camera, pass_alt_m, pdef.direction_deg, up, pdef.tilt_deg).scaled(scale)
         trigger_m = ex.air_base_m(rect.along_m, pdef.front_overlap_pct)
         spacing_m = ex.air_base_m(rect.across_m, pdef.side_overlap_pct)
-        speed_m_s = _check_speed(spec, pdef, trigger_m, pass_alt_m, speed_m_s, warnings)
-        area_uv = _rotate(area_xy, pdef.direction_deg)
-        blocked_uv = _rotate(blocked_xy, pdef.direction_deg) if blocked_xy is not None else None
+        speed_m_s = steps.check_speed(spec, pdef, trigger_m, pass_alt_m, speed_m_s, warnings)
+        area_uv = ex.geometry_to_pass_frame(area_xy, pdef.direction_deg)
+        blocked_uv = (
+            ex.geometry_to_pass_frame(blocked_xy, pdef.direction_deg) if blocked_xy is not None else None
+        )
         hover = survey.trigger is TriggerMode.HOVER
         step_m = trigger_m if hover else trig.station_step_m(trigger_m, speed_m_s)
         layout = layout_pass(area_uv, blocked_uv, rect, step_m, spacing_m)
-        segments = layout.segments
-        if not hover:
-            segments = tuple(
-                part
-                for seg in segments
-                for part in split_run(seg, trig.max_run_stations(seg.spacing_m, speed_m_s))
-            )
+        segments = layout.segments if hover else trig.split_for_trigger(layout.segments, speed_m_s)
         if layout.uncovered_m2 > 0:
             warnings.append(
                 f"{pdef.name}: {layout.uncovered_m2:.0f} m2 beside exclusion zones cannot be seen "
@@ -387,43 +238,6 @@ def _lay_out_passes(
     return pass_plans, views, speed_m_s
 
 
-def _read_dem(spec: MissionSpec, area_lonlat: Polygon | MultiPolygon, home: HomePosition) -> Dem:
-    """Only the DEM around the area and home (with a margin for the turnarounds and footprints)."""
-    assert spec.terrain is not None
-    west, south, east, north = area_lonlat.bounds
-    west, east = min(west, home.lon_deg), max(east, home.lon_deg)
-    south, north = min(south, home.lat_deg), max(north, home.lat_deg)
-    margin = 0.01
-    return Dem.from_geotiff(
-        spec.terrain.dem_path, bounds_lonlat=(west - margin, south - margin, east + margin, north + margin)
-    )
-
-
-def _judge_terrain_overlaps(spec: MissionSpec, terrain: TerrainSummary, warnings: list[str]) -> None:
-    """The overlaps of the footprints cast on the DEM against the spec: gaps at constant altitude
-    fail unless accepted; a shortfall is a warning."""
-    assert spec.terrain is not None
-    survey = spec.survey
-    front, side = terrain.front_overlap_min_pct, terrain.side_overlap_min_pct
-    figures = (
-        f"over the DEM the frames overlap by as little as {front:.0f} % forward and {side:.0f} % side "
-        f"(planned {survey.front_overlap_pct:g} % and {survey.side_overlap_pct:g} %; the stations are "
-        f"{terrain.station_alt_agl_min_m:.1f} to {terrain.station_alt_agl_max_m:.1f} m above the ground)"
-    )
-    gaps = side < 0.0 or front < 0.0
-    if not spec.terrain.follow and gaps and not spec.terrain.accept_overlap_loss:
-        raise PlanningError(
-            f"{spec.source}: {figures}: gaps open between the frames where the ground is high; set "
-            f"follow = true in [terrain] (or fly higher), or set accept_overlap_loss = true in "
-            f"[terrain] to fly it anyway"
-        )
-    if front < survey.front_overlap_pct - 1.0 or side < survey.side_overlap_pct - 1.0:
-        fix = (
-            "set follow = true in [terrain]" if not spec.terrain.follow else "lower tolerance_m in [terrain]"
-        )
-        warnings.append(f"{figures}{' (gaps between frames)' if gaps else ''}; {fix}")
-
-
 def auto_direction_deg(area_xy: Polygon | MultiPolygon) -> float:
     """Bearing of the lines that minimizes their number: parallel to the edge of the convex hull
     across which the area is narrowest (rotating calipers); ties go to the longest edge."""
@@ -443,21 +257,12 @@ def auto_direction_deg(area_xy: Polygon | MultiPolygon) -> float:
     return best[2]
 
 
-def _default_home(area_xy: Polygon | MultiPolygon) -> tuple[float, float]:
-    """No home given: the area's vertex nearest the south-west corner of its bounding box."""
-    min_x, min_y, _, _ = area_xy.bounds
-    polys = getattr(area_xy, "geoms", [area_xy])
-    vertices = np.vstack([np.asarray(p.exterior.coords) for p in polys])
-    k = int(np.argmin(np.hypot(vertices[:, 0] - min_x, vertices[:, 1] - min_y)))
-    return float(vertices[k, 0]), float(vertices[k, 1])
-
-
-def _pass_definitions(spec: MissionSpec, direction: float, true_north_grid: float) -> list[_PassDef]:
+def _pass_definitions(spec: MissionSpec, direction: float, true_north_grid: float) -> list[steps.PassDef]:
     """The passes to fly; ``direction`` is the nadir lines' grid bearing, look headings are
     turned from true to grid bearings with ``true_north_grid``."""
     s = spec.survey
     defs = [
-        _PassDef(
+        steps.PassDef(
             kind=PassKind.NADIR,
             name="nadir",
             direction_deg=direction % 180.0,
@@ -469,7 +274,7 @@ def _pass_definitions(spec: MissionSpec, direction: float, true_north_grid: floa
     ]
     if s.crosshatch:
         defs.append(
-            _PassDef(
+            steps.PassDef(
                 kind=PassKind.CROSSHATCH,
                 name="crosshatch",
                 direction_deg=(direction + 90.0) % 180.0,
@@ -490,7 +295,7 @@ def _pass_definitions(spec: MissionSpec, direction: float, true_north_grid: floa
                 key=lambda d: min(abs(d - direction % 180.0), 180 - abs(d - direction % 180.0)),
             )
             defs.append(
-                _PassDef(
+                steps.PassDef(
                     kind=PassKind.OBLIQUE,
                     name=f"oblique {oblique.tilt_deg:g} deg looking {true_heading:g} deg",
                     direction_deg=line_dir,
@@ -509,54 +314,3 @@ def _pass_definitions(spec: MissionSpec, direction: float, true_north_grid: floa
                 )
             )
     return defs
-
-
-def _check_speed(
-    spec: MissionSpec,
-    pdef: _PassDef,
-    trigger_m: float,
-    alt_agl_m: float,
-    speed_m_s: float,
-    warnings: list[str],
-) -> float:
-    """Refuse (or, with adjust_speed, lower) a speed the camera cannot keep up with."""
-    camera = spec.camera
-    if spec.survey.trigger is TriggerMode.HOVER:
-        return speed_m_s
-    limits = {"trigger": ex.max_speed_for_trigger_m_s(trigger_m, camera.min_trigger_interval_s)}
-    if camera.shutter_s is not None:
-        along_gsd = (
-            min(near_far_gsd_cm(camera, alt_agl_m, pdef.tilt_deg))
-            if pdef.tilt_deg
-            else (
-                camera.gsd_y_cm(alt_agl_m)
-                if spec.orientation is Orientation.LANDSCAPE
-                else camera.gsd_x_cm(alt_agl_m)
-            )
-        )
-        limits["blur"] = ex.max_speed_for_blur_m_s(along_gsd, camera.shutter_s, spec.survey.max_blur_px)
-    reason, limit = min(limits.items(), key=lambda kv: kv[1])
-    if speed_m_s <= limit + 1e-9:
-        return speed_m_s
-    why = (
-        f"the camera needs {camera.min_trigger_interval_s:g} s between photos and the {pdef.name} pass "
-        f"triggers every {trigger_m:.1f} m"
-        if reason == "trigger"
-        else f"a {camera.shutter_s:g} s exposure blurs more than {spec.survey.max_blur_px:g} px above it"
-    )
-    safe = math.floor(limit * 10.0) / 10.0
-    if spec.survey.adjust_speed:
-        warnings.append(f"speed lowered from {speed_m_s:g} to {safe:g} m/s: {why}")
-        return safe
-    raise SpecError(
-        f"{spec.source}: speed_m_s = {speed_m_s:g} is too fast: {why}, so at most {safe:g} m/s; "
-        f"lower speed_m_s, lower the overlaps, or set adjust_speed = true"
-    )
-
-
-def _rotate(geom: shapely.Geometry, direction_deg: float) -> shapely.Geometry:
-    def fn(coords: np.ndarray) -> np.ndarray:
-        u, v = ex.to_pass_frame(coords[:, 0], coords[:, 1], direction_deg)
-        return np.column_stack([u, v])
-
-    return shapely.transform(geom, fn)

@@ -27,10 +27,12 @@ sphere of radius 6,371,000 m; the same margins are kept, with that sphere's dist
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .lines import Segment, split_run
 from .mission import Autopilot
 
 #: The rate at which the trigger distance is checked (AP_Camera_Backend::update), Hz.
@@ -87,6 +89,13 @@ def max_run_stations(spacing_m: float, speed_m_s: float) -> int:
     step = loop_step_m(speed_m_s)
     room = DRIFT_SHARE * 0.5 * spacing_m - step
     return max(1, math.floor(room / (0.5 * step)) + 1) if room > 0 else 1
+
+
+def split_for_trigger(segments: Iterable[Segment], speed_m_s: float) -> tuple[Segment, ...]:
+    """Each run cut into consecutive runs of at most :func:`max_run_stations` stations."""
+    return tuple(
+        part for seg in segments for part in split_run(seg, max_run_stations(seg.spacing_m, speed_m_s))
+    )
 
 
 def commanded_distance_m(spacing_m: float, ratio: float, speed_m_s: float) -> float:
