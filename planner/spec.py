@@ -13,7 +13,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from enum import StrEnum
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 from .camera import Camera, Orientation
 from .errors import SpecError
@@ -193,13 +193,7 @@ def parse_spec(data: Mapping[str, Any], file: Path) -> MissionSpec:
         raise SpecError(f'{where}: a [camera] table is required (model = "..." or the sensor fields)')
     camera_fields = dict(camera_data)
     orientation_text = camera_fields.pop("orientation", "landscape")
-    try:
-        orientation = Orientation(orientation_text)
-    except ValueError:
-        raise SpecError(
-            f"{where}: camera.orientation = {orientation_text!r}; use one of "
-            f"{', '.join(o.value for o in Orientation)}"
-        ) from None
+    orientation = _choice(Orientation, orientation_text, f"{where}: camera.orientation")
     camera = camera_from_mapping(camera_fields, where=f"{where} [camera]")
 
     survey = _parse_survey(data.get("survey"), where)
@@ -218,6 +212,17 @@ def parse_spec(data: Mapping[str, Any], file: Path) -> MissionSpec:
         terrain=terrain,
         corridor_width_m=corridor_width,
     )
+
+
+E = TypeVar("E", bound=StrEnum)
+
+
+def _choice(choices: type[E], text: Any, key: str) -> E:
+    """``text`` as one of the ``choices``; ``key`` names the spec's key ("FILE [survey]: trigger")."""
+    try:
+        return choices(text)
+    except ValueError:
+        raise SpecError(f"{key} = {text!r}; use one of {', '.join(c.value for c in choices)}") from None
 
 
 def _parse_terrain(value: Any, base: Path, where: str) -> TerrainSpec:
@@ -258,12 +263,7 @@ def _parse_survey(value: Any, where: str) -> SurveySpec:
     else:
         raise SpecError(f'{section}: direction_deg = {raw_direction!r}; use "auto" or a bearing in degrees')
     trigger_text = value.get("trigger", "distance")
-    try:
-        trigger = TriggerMode(trigger_text)
-    except ValueError:
-        raise SpecError(
-            f"{section}: trigger = {trigger_text!r}; use one of {', '.join(t.value for t in TriggerMode)}"
-        ) from None
+    trigger = _choice(TriggerMode, trigger_text, f"{section}: trigger")
     obliques_raw = value.get("oblique", [])
     if not isinstance(obliques_raw, list):
         raise SpecError(f"{section}: oblique must be an array of tables ([[survey.oblique]])")
@@ -342,19 +342,9 @@ def _parse_vehicle(value: Any, where: str) -> VehicleSpec:
     section = f"{where} [vehicle]"
     _check_keys(value, _VEHICLE_KEYS | _FIXED_WING_KEYS, section, "[vehicle]")
     type_text = value.get("type", "multirotor")
-    try:
-        vehicle_type = VehicleType(type_text)
-    except ValueError:
-        raise SpecError(
-            f"{section}: type = {type_text!r}; use one of {', '.join(v.value for v in VehicleType)}"
-        ) from None
+    vehicle_type = _choice(VehicleType, type_text, f"{section}: type")
     autopilot_text = value.get("autopilot", "ardupilot")
-    try:
-        autopilot = Autopilot(autopilot_text)
-    except ValueError:
-        raise SpecError(
-            f"{section}: autopilot = {autopilot_text!r}; use one of {', '.join(a.value for a in Autopilot)}"
-        ) from None
+    autopilot = _choice(Autopilot, autopilot_text, f"{section}: autopilot")
     home = value.get("home")
     home_lat = home_lon = None
     if home is not None:

@@ -183,6 +183,15 @@ class _Pick:
 _Field = _Lit | _Num | _Pick
 
 
+def _props(*props: tuple[str, NDArray[np.float64], int, str]) -> list[_Field]:
+    """Number properties after the first: ``,"key":value`` for each (key, values, decimals, what)."""
+    return [
+        field
+        for key, values, decimals, what in props
+        for field in (_Lit(f',"{key}":'), _Num(values, decimals, what))
+    ]
+
+
 def _render_rows(fields: Sequence[_Field], n: int, separator: str = ",\n") -> Iterator[bytes]:
     """The rows described by ``fields`` as text, a chunk of rows at a time, rows joined by
     ``separator`` (a generator, so that only one chunk's table is alive at a time)."""
@@ -294,22 +303,16 @@ def flight_lines_geojson_bytes(plan: SurveyPlan) -> bytes:
         _Pick(pos, kinds),
         _Lit(',"pass_name":'),
         _Pick(pos, names),
-        _Lit(',"heading_deg":'),
-        _Num(col([ln.heading_deg for _, _, ln in lines]), 2, "line heading"),
-        _Lit(',"length_m":'),
-        _Num(np.hypot(*(end - start).T), 3, "line length"),
-        _Lit(',"lead_in_m":'),
-        _Num(np.hypot(*(start - entry).T), 3, "line lead-in"),
-        _Lit(',"overshoot_m":'),
-        _Num(np.hypot(*(exit_ - end).T), 3, "line overshoot"),
-        _Lit(',"alt_agl_m":'),
-        _Num(col([p.alt_agl_m for _, p, _ in lines]), 2, "pass altitude"),
-        _Lit(',"tilt_deg":'),
-        _Num(col([p.tilt_deg for _, p, _ in lines]), 2, "pass tilt"),
-        _Lit(',"look_heading_deg":'),
-        _Num(look, 2, "look heading"),
-        _Lit(',"trigger_distance_m":'),
-        _Num(col([p.trigger_distance_m for _, p, _ in lines]), 3, "trigger distance"),
+        *_props(
+            ("heading_deg", col([ln.heading_deg for _, _, ln in lines]), 2, "line heading"),
+            ("length_m", np.hypot(*(end - start).T), 3, "line length"),
+            ("lead_in_m", np.hypot(*(start - entry).T), 3, "line lead-in"),
+            ("overshoot_m", np.hypot(*(exit_ - end).T), 3, "line overshoot"),
+            ("alt_agl_m", col([p.alt_agl_m for _, p, _ in lines]), 2, "pass altitude"),
+            ("tilt_deg", col([p.tilt_deg for _, p, _ in lines]), 2, "pass tilt"),
+            ("look_heading_deg", look, 2, "look heading"),
+            ("trigger_distance_m", col([p.trigger_distance_m for _, p, _ in lines]), 3, "trigger distance"),
+        ),
         _Lit("}}"),
     ]
     body = _render_rows(fields, n)
@@ -339,22 +342,16 @@ def stations_geojson_bytes(plan: SurveyPlan) -> bytes:
         _Num(index, 0, "station index"),
         _Lit(',"kind":'),
         _Pick(pos, kinds),
-        _Lit(',"lat_deg":'),
-        _Num(st.lat_deg, COORD_DECIMALS, "station latitude"),
-        _Lit(',"lon_deg":'),
-        _Num(st.lon_deg, COORD_DECIMALS, "station longitude"),
-        _Lit(',"alt_rel_home_m":'),
-        _Num(st.alt_rel_home_m, 2, "station altitude above home"),
-        _Lit(',"alt_agl_m":'),
-        _Num(st.alt_agl_m, 2, "station altitude above ground"),
-        _Lit(',"heading_deg":'),
-        _Num(st.heading_deg, 2, "station heading"),
-        _Lit(',"look_heading_deg":'),
-        _Num(st.look_heading_deg, 2, "station look heading"),
-        _Lit(',"tilt_deg":'),
-        _Num(st.tilt_deg, 2, "station tilt"),
-        _Lit(',"gsd_cm":'),
-        _Num(st.gsd_cm, 3, "station GSD"),
+        *_props(
+            ("lat_deg", st.lat_deg, COORD_DECIMALS, "station latitude"),
+            ("lon_deg", st.lon_deg, COORD_DECIMALS, "station longitude"),
+            ("alt_rel_home_m", st.alt_rel_home_m, 2, "station altitude above home"),
+            ("alt_agl_m", st.alt_agl_m, 2, "station altitude above ground"),
+            ("heading_deg", st.heading_deg, 2, "station heading"),
+            ("look_heading_deg", st.look_heading_deg, 2, "station look heading"),
+            ("tilt_deg", st.tilt_deg, 2, "station tilt"),
+            ("gsd_cm", st.gsd_cm, 3, "station GSD"),
+        ),
         _Lit("}}"),
     ]
     body = _render_rows(fields, n)
@@ -403,16 +400,13 @@ def footprints_geojson_bytes(plan: SurveyPlan) -> bytes:
     fields += [
         _Lit(']]},"properties":{"pass":'),
         _Num(st.pass_index.astype(np.float64), 0, "pass index"),
-        _Lit(',"line":'),
-        _Num(st.line_index.astype(np.float64), 0, "line index"),
-        _Lit(',"station":'),
-        _Num(index, 0, "station index"),
-        _Lit(',"tilt_deg":'),
-        _Num(st.tilt_deg, 2, "station tilt"),
-        _Lit(',"look_heading_deg":'),
-        _Num(st.look_heading_deg, 2, "station look heading"),
-        _Lit(',"gsd_cm":'),
-        _Num(st.gsd_cm, 3, "station GSD"),
+        *_props(
+            ("line", st.line_index.astype(np.float64), 0, "line index"),
+            ("station", index, 0, "station index"),
+            ("tilt_deg", st.tilt_deg, 2, "station tilt"),
+            ("look_heading_deg", st.look_heading_deg, 2, "station look heading"),
+            ("gsd_cm", st.gsd_cm, 3, "station GSD"),
+        ),
         _Lit("}}"),
     ]
     body = _render_rows(fields, n)

@@ -53,7 +53,7 @@ from ..mission import (
     VehicleType,
 )
 from ..outputs import atomic_write_text
-from .mission_file import read_mission_bytes
+from .mission_file import item_from_params, mav_frame, read_mission_bytes
 
 logger = logging.getLogger(__name__)
 
@@ -266,32 +266,16 @@ def _simple_item(raw: object, where: str, source: str) -> tuple[MissionItem, int
         raise MissionFileError(f"{source}: {where} has {len(params)} params, expected 7 (param1..param7)")
     command = _integer(obj["command"], f"{where} command", source)
     frame_number = _integer(obj["frame"], f"{where} frame", source)
-    try:
-        frame = MavFrame(frame_number)
-    except ValueError:
-        known = ", ".join(f"{f.value} ({f.name})" for f in MavFrame)
-        raise MissionFileError(
-            f"{source}: {where} frame {frame_number} is not a mission frame sfap handles ({known})"
-        ) from None
+    frame = mav_frame(frame_number)
+    if isinstance(frame, str):
+        raise MissionFileError(f"{source}: {where} {frame}")
     autocontinue = obj["autoContinue"]
     if not isinstance(autocontinue, bool):
         raise MissionFileError(f"{source}: {where} autoContinue is {autocontinue!r}, expected true or false")
     values = [_number_or_nan(p, f"{where} param{n}", source) for n, p in enumerate(params, start=1)]
-    p1, p2, p3, p4 = (None if math.isnan(v) else v for v in values[:4])
     do_jump_id = obj.get("doJumpId")
     jump_id = None if do_jump_id is None else _integer(do_jump_id, f"{where} doJumpId", source)
-    item = MissionItem(
-        command=command,
-        frame=frame,
-        param1=p1,
-        param2=p2,
-        param3=p3,
-        param4=p4,
-        param5=values[4],
-        param6=values[5],
-        param7=values[6],
-        autocontinue=autocontinue,
-    )
+    item = item_from_params(command, frame, values, autocontinue)
     return item, jump_id
 
 

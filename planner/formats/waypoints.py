@@ -38,7 +38,7 @@ from pathlib import Path
 from ..errors import MissionFileError, MissionValidationError
 from ..mission import Autopilot, HomePosition, MavCmd, MavFrame, Mission, MissionItem
 from ..outputs import atomic_write_text
-from .mission_file import read_mission_bytes
+from .mission_file import item_from_params, mav_frame, read_mission_bytes
 
 logger = logging.getLogger(__name__)
 
@@ -149,28 +149,12 @@ def _parse_row(fields: list[str], source: str, line_no: int) -> tuple[int, int, 
     autocontinue = _parse_int(fields[11], "AUTOCONTINUE", source, line_no)
     if autocontinue not in (0, 1):
         raise _fail(source, line_no, f"AUTOCONTINUE is {autocontinue}, expected 0 or 1")
-    try:
-        frame = MavFrame(frame_number)
-    except ValueError:
-        known = ", ".join(f"{f.value} ({f.name})" for f in MavFrame)
-        raise _fail(
-            source, line_no, f"FRAME {frame_number} is not a mission frame sfap handles ({known})"
-        ) from None
+    frame = mav_frame(frame_number)
+    if isinstance(frame, str):
+        raise _fail(source, line_no, frame.replace("frame", "FRAME", 1))
     if command < 0 or command > 65535:
         raise _fail(source, line_no, f"COMMAND {command} is not a MAV_CMD (0-65535)")
-    p1, p2, p3, p4 = (None if math.isnan(p) else p for p in params[:4])
-    item = MissionItem(
-        command=command,
-        frame=frame,
-        param1=p1,
-        param2=p2,
-        param3=p3,
-        param4=p4,
-        param5=params[4],
-        param6=params[5],
-        param7=params[6],
-        autocontinue=bool(autocontinue),
-    )
+    item = item_from_params(command, frame, params, bool(autocontinue))
     return index, current, item
 
 
