@@ -487,6 +487,8 @@ class CameraTags:
     - ``gimbal_*_deg``: DJI XMP ``drone-dji:GimbalYawDegree/GimbalPitchDegree/GimbalRollDegree``
       (earth-referenced; pitch -90 is nadir); ``flight_*_deg``: ``FlightYaw/Pitch/RollDegree``.
     - ``gps_altitude_ref``: EXIF GPSAltitudeRef as written (0 above, 1 below sea level).
+    - ``pixel_x_dimension_px``: EXIF PixelXDimension, the width the camera wrote; an image
+      reduced afterwards keeps it (and a focal plane resolution that counts those pixels).
     """
 
     focal_plane_x_px_per_mm: float | None = None
@@ -499,6 +501,7 @@ class CameraTags:
     flight_pitch_deg: float | None = None
     flight_roll_deg: float | None = None
     gps_altitude_ref: int | None = None
+    pixel_x_dimension_px: int | None = None
 
 
 def camera_tags_from_maps(exif: dict[str, Any], xmp: dict[str, Any]) -> CameraTags:
@@ -523,6 +526,7 @@ def camera_tags_from_maps(exif: dict[str, Any], xmp: dict[str, Any]) -> CameraTa
     f35_text = get("Exif.Photo.FocalLengthIn35mmFilm")
     f35 = _float(f35_text) if f35_text else None
     ref_text = get("Exif.GPSInfo.GPSAltitudeRef")
+    width_text = get("Exif.Photo.PixelXDimension")
     return CameraTags(
         focal_plane_x_px_per_mm=per_mm("Exif.Photo.FocalPlaneXResolution"),
         focal_plane_y_px_per_mm=per_mm("Exif.Photo.FocalPlaneYResolution"),
@@ -534,6 +538,9 @@ def camera_tags_from_maps(exif: dict[str, Any], xmp: dict[str, Any]) -> CameraTa
         flight_pitch_deg=_float(get("Xmp.drone-dji.FlightPitchDegree")),
         flight_roll_deg=_float(get("Xmp.drone-dji.FlightRollDegree")),
         gps_altitude_ref=int(ref_text) if ref_text and ref_text.isdigit() else None,
+        pixel_x_dimension_px=int(width_text)
+        if width_text and width_text.isdigit() and int(width_text)
+        else None,
     )
 
 

@@ -9,13 +9,17 @@ Camera sources, most to least sure (:class:`CameraChoice` says which was used):
    the same aspect ratio keep its sensor and lens (:func:`resized`);
 3. EXIF FocalLength with FocalPlaneX/YResolution (and its unit): the focal length in pixels
    as the camera maker states it. Good to about 1 %; some makers give the resolution of the
-   full sensor while the image is a crop, which the check cannot see (hence not "sure");
+   full sensor while the image is a crop, which the check cannot see (hence not "sure"). An
+   image reduced after capture keeps its original EXIF: the resolution counts pixels of the
+   original width (PixelXDimension), so it is scaled to the file's real width;
 4. EXIF FocalLengthIn35mmFilm with the image size: the focal length in pixels from the
    diagonal, f_px = f35 x diagonal_px / 43.27 mm. Rough: the value is a whole number of
    millimetres (+-2 % at 28 mm) and some makers scale by the width instead of the diagonal
    (up to 4 % more for a 4:3 sensor), so GSD and footprints may be off by about 5 %.
 
-Nothing else gives a focal length in pixels: without one of these the check refuses.
+Nothing else gives a focal length in pixels: without one of these the check refuses (and the
+hand-off guesses, saying so: processing.handoff.intrinsics). :func:`camera_from_tags` makes the
+choice from the images' tags for both.
 
 DJI gimbal angles (``drone-dji:GimbalYawDegree``, ``GimbalPitchDegree``, ``GimbalRollDegree``)
 are earth-referenced Tait-Bryan angles of the camera (NED-from-gimbal = Rz(yaw) Ry(pitch)
@@ -39,16 +43,12 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from planner.camera import Camera
+from planner.camera import FULL_FRAME_DIAGONAL_MM, Camera
 from planner.camera_db import camera_from_mapping, get_camera, match_exif
 from planner.errors import CameraError
 
 if TYPE_CHECKING:
     from acquisition.exif import CameraTags, ImageTags
-
-#: Diagonal of the 36 x 24 mm frame "35 mm equivalent" focal lengths refer to.
-FULL_FRAME_DIAGONAL_MM = math.hypot(36.0, 24.0)
-
 
 class CameraConfidence(StrEnum):
     GIVEN = "given"  # the crew named the camera or gave its numbers
@@ -119,9 +119,16 @@ def _exif_camera(
     focal_plane_x_px_per_mm: float | None,
     focal_plane_y_px_per_mm: float | None,
     focal_35mm_mm: float | None,
+    original_width_px: int | None,
 ) -> CameraChoice | None:
     name = display_name(make, model)
     if focal_mm is not None and focal_plane_x_px_per_mm and focal_plane_y_px_per_mm:
+        reduced = ""
+        if original_width_px and original_width_px != width_px:
+            # Pixels of the original image per mm: fewer of the file's own.
+            focal_plane_x_px_per_mm *= width_px / original_width_px
+            focal_plane_y_px_per_mm *= width_px / original_width_px
+            reduced = f", image reduced from {original_width_px} px wide"
         try:
             camera = Camera(
                 id="exif",
@@ -148,8 +155,8 @@ def _exif_camera(
                 source=(
                     f"{name} is not in the database: camera from its EXIF focal length {focal_mm:g} mm and "
                     f"focal plane resolution ({f_px:.0f} px focal length, sensor "
-                    f"{camera.sensor_width_mm:.2f} x {camera.sensor_height_mm:.2f} mm); good to about 1 % "
-                    "unless the maker states the resolution of a larger sensor than the image uses"
+                    f"{camera.sensor_width_mm:.2f} x {camera.sensor_height_mm:.2f} mm{reduced}); good to "
+                    "about 1 % unless the maker states the resolution of a larger sensor than the image uses"
                 ),
             )
     if focal_35mm_mm is not None:
@@ -185,22 +192,12 @@ def _exif_camera(
     return None
 
 
-def choose_camera(
-    tags: ImageTags,
-    camera_tags: CameraTags | None,
-    *,
-    given: Camera | None = None,
-    fallback: Camera | None = None,
-    where: str = "images",
-) -> CameraChoice:
-    """The camera of images whose tags are ``tags`` (one representative of a group that shares
-    make, model, focal length and image size); see the module docstring for the order.
-    Raises CameraError naming what is missing when nothing gives a focal length in pixels."""
+def camera_from_tags(tags: ImageTags, camera_tags: CameraTags | None) -> CameraChoice | None:
+    """The camera that took images whose tags are ``tags`` (one representative of a group that
+    shares make, model, focal length and image size) from the tags alone: the database, a
+    database camera's images scaled, the EXIF geometry (module docstring for the order); None
+    when nothing gives a focal length in pixels."""
     name = display_name(tags.make, tags.model)
-    if given is not None:
-        return CameraChoice(
-            camera=given, confidence=CameraConfidence.GIVEN, source=f"given: {given.id} ({given.name})"
-        )
     focal = known(tags.focal_length_mm)
     matched = match_exif(tags.make, tags.model, focal, tags.width_px, tags.height_px)
     if matched is not None:
@@ -232,7 +229,7 @@ def choose_camera(
                     ),
                 )
     if tags.width_px and tags.height_px and camera_tags is not None:
-        choice = _exif_camera(
+        return _exif_camera(
             make=tags.make,
             model=tags.model,
             focal_mm=focal,
@@ -241,15 +238,42 @@ def choose_camera(
             focal_plane_x_px_per_mm=camera_tags.focal_plane_x_px_per_mm,
             focal_plane_y_px_per_mm=camera_tags.focal_plane_y_px_per_mm,
             focal_35mm_mm=camera_tags.focal_length_35mm_mm,
+            original_width_px=camera_tags.pixel_x_dimension_px,
         )
-        if choice is not None:
-            return choice
+    return None
+
+
+def given_choice(camera: Camera) -> CameraChoice:
+    """The camera the crew gave (``--camera``)."""
+    return CameraChoice(
+        camera=camera, confidence=CameraConfidence.GIVEN, source=f"given: {camera.id} ({camera.name})"
+    )
+
+
+def choose_camera(
+    tags: ImageTags,
+    camera_tags: CameraTags | None,
+    *,
+    given: Camera | None = None,
+    fallback: Camera | None = None,
+    where: str = "images",
+) -> CameraChoice:
+    """The camera of images whose tags are ``tags``: ``given``, else :func:`camera_from_tags`,
+    else ``fallback`` (the plan's camera). Raises CameraError naming what is missing when
+    nothing gives a focal length in pixels."""
+    if given is not None:
+        return given_choice(given)
+    choice = camera_from_tags(tags, camera_tags)
+    if choice is not None:
+        return choice
+    name = display_name(tags.make, tags.model)
     if fallback is not None:
         return CameraChoice(
             camera=fallback,
             confidence=CameraConfidence.PLAN,
             source=f"the plan's camera {fallback.id} (EXIF {name} matches no database camera)",
         )
+    focal = known(tags.focal_length_mm)
     focal_text = f"{focal:g} mm" if focal is not None else "unknown"
     raise CameraError(
         f"{where}: no focal length in pixels for {name} (EXIF focal length {focal_text}, image "

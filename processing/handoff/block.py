@@ -1,6 +1,6 @@
 """The block to hand off: every image, its camera, and its pose prior in a local metric frame.
 
-Images are read with :func:`acquisition.exif.read_tags`; images from different cameras (make,
+Images are read with :func:`acquisition.exif.read_tags_and_camera`; images from different cameras (make,
 model, focal length, image size) get one camera each. Positioned images become
 :class:`~processing.frames.Frames` through :func:`processing.inputs.frames_from_tags` (one call
 per camera, so each has its camera) and are projected onto the ground with
@@ -35,10 +35,10 @@ from planner.geo import LocalFrame
 from ..frames import AltitudeReference, Frames
 from ..inputs import frames_from_tags, image_paths, local_frame_at
 from .errors import HandoffInputError
-from .intrinsics import Intrinsics, given_intrinsics, intrinsics_for
+from .intrinsics import Intrinsics, intrinsics_for
 
 if TYPE_CHECKING:
-    from acquisition.exif import ImageTags
+    from acquisition.exif import CameraTags, ImageTags
 
 log = logging.getLogger(__name__)
 
@@ -146,12 +146,15 @@ def read_block(
     progress: Callable[[int], None] | None = None,
 ) -> Block:
     """Read every JPEG in ``image_dir`` into a :class:`Block` (module docstring)."""
-    from acquisition.exif import read_tags
+    from acquisition.exif import read_tags_and_camera
 
     paths = image_paths(image_dir)
     tags: list[ImageTags] = []
+    camera_tags: list[CameraTags] = []
     for p in paths:
-        tags.append(read_tags(p))
+        image_tags, extra = read_tags_and_camera(p)
+        tags.append(image_tags)
+        camera_tags.append(extra)
         if progress is not None:
             progress(1)
     notes: list[str] = []
@@ -173,24 +176,7 @@ def read_block(
     for c, (_key, members) in enumerate(groups.items()):
         t0 = tags[members[0]]
         assert t0.width_px is not None and t0.height_px is not None
-        if camera is not None:
-            intr = given_intrinsics(
-                camera,
-                make=t0.make,
-                model=t0.model,
-                focal_length_mm=t0.focal_length_mm,
-                width_px=t0.width_px,
-                height_px=t0.height_px,
-            )
-        else:
-            intr = intrinsics_for(
-                sample_path=t0.path,
-                make=t0.make,
-                model=t0.model,
-                focal_length_mm=t0.focal_length_mm,
-                width_px=t0.width_px,
-                height_px=t0.height_px,
-            )
+        intr = intrinsics_for(t0, camera_tags[members[0]], given=camera)
         intrinsics.append(intr)
         camera_of[members] = c
     if len(groups) > 1:

@@ -1,32 +1,25 @@
 """Camera intrinsics for a reconstruction: focal length in pixels and principal point.
 
-From the camera database when the EXIF matches a camera there (focal length over pixel pitch),
-else from the EXIF focal length and the focal-plane resolution (the pixel pitch the camera
-writes), else from the 35 mm equivalent focal length; as a last resort COLMAP's own default
+The camera is the one the check would use (:func:`processing.image_tags.camera_from_tags`: the
+given camera, the database, a database camera's images scaled, the EXIF focal plane
+resolution, the 35 mm equivalent focal length); its focal length over its pixel pitch at the
+images' own size is the focal length in pixels. Where nothing gives one, COLMAP's own default
 (1.2 x the longer image side), said so. The principal point is the image centre; the engine
 refines both.
-
-Images reduced after capture (as copr_kap's) keep their original EXIF: the focal-plane
-resolution counts pixels of the original width (``PixelXDimension``), so it is scaled to the
-file's real width.
-
-pyexiv2 is read here for the three focal-plane tags that :mod:`acquisition.exif` does not
-expose (FocalPlaneXResolution, FocalPlaneResolutionUnit, PixelXDimension).
 """
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass
-from fractions import Fraction
+from typing import TYPE_CHECKING
 
 from planner.camera import Camera
-from planner.camera_db import match_exif
 
-#: Millimetres per FocalPlaneResolutionUnit (EXIF: 2 inch, 3 cm, 4 mm, 5 um).
-_UNIT_MM = {2: 25.4, 3: 10.0, 4: 1.0, 5: 0.001}
-#: The 35 mm film frame's diagonal, mm.
-_FULL_FRAME_DIAGONAL_MM = 43.2666
+from ..image_tags import CameraConfidence, camera_from_tags, given_choice, known
+
+if TYPE_CHECKING:
+    from acquisition.exif import CameraTags, ImageTags
+
 #: COLMAP's default focal length for an unknown camera, times the longer image side.
 DEFAULT_FOCAL_FACTOR = 1.2
 
@@ -70,124 +63,55 @@ class Intrinsics:
         }
 
 
-def _rational(text: str | None) -> float | None:
-    if not text:
-        return None
-    try:
-        value = float(Fraction(text.strip().split()[0]))
-    except (ValueError, ZeroDivisionError):
-        return None
-    return value if value > 0 else None
-
-
-def _focal_plane_tags(path: str | os.PathLike[str]) -> dict[str, str]:
-    import pyexiv2
-
-    image = pyexiv2.Image(os.fspath(path))
-    try:
-        exif = image.read_exif()
-    finally:
-        image.close()
-    keys = (
-        "Exif.Photo.FocalPlaneXResolution",
-        "Exif.Photo.FocalPlaneResolutionUnit",
-        "Exif.Photo.PixelXDimension",
-        "Exif.Photo.FocalLengthIn35mmFilm",
-    )
-    return {k: str(exif[k]) for k in keys if k in exif}
-
-
-def given_intrinsics(
-    camera: Camera,
-    *,
-    make: str | None,
-    model: str | None,
-    focal_length_mm: float | None,
-    width_px: int,
-    height_px: int,
-) -> Intrinsics:
-    """The intrinsics of images taken with ``camera`` (``--camera``), at the images' own size: a
-    scaled copy keeps the field of view, so the focal length in pixels scales with the width."""
-    key = (make or "", model or "", float(focal_length_mm or 0.0), int(width_px), int(height_px))
+def intrinsics_for(tags: ImageTags, camera_tags: CameraTags | None, *, given: Camera | None) -> Intrinsics:
+    """The intrinsics of images whose tags are ``tags`` (one representative of a group that
+    shares make, model, focal length and image size), taken with ``given`` (``--camera``) or
+    the camera their tags say (module docstring)."""
+    assert tags.width_px and tags.height_px
+    width_px, height_px = int(tags.width_px), int(tags.height_px)
+    key = (tags.make or "", tags.model or "", float(tags.focal_length_mm or 0.0), width_px, height_px)
+    choice = given_choice(given) if given is not None else camera_from_tags(tags, camera_tags)
+    if choice is None:
+        return Intrinsics(
+            key=key,
+            width_px=width_px,
+            height_px=height_px,
+            focal_px=DEFAULT_FOCAL_FACTOR * max(width_px, height_px),
+            focal_length_mm=known(tags.focal_length_mm),
+            pixel_pitch_mm=None,
+            source=f"GUESSED: no database camera, focal-plane resolution or 35 mm focal length in EXIF; "
+            f"{DEFAULT_FOCAL_FACTOR} x the longer side (the engine must refine it)",
+        )
+    camera = choice.camera
+    # A scaled copy keeps the field of view, so the focal length in pixels scales with the
+    # width; a portrait image of a landscape sensor swaps the axes.
     landscape_image = width_px >= height_px
     landscape_sensor = camera.image_width_px >= camera.image_height_px
     across_mm = camera.sensor_width_mm if landscape_image == landscape_sensor else camera.sensor_height_mm
     pitch = across_mm / width_px
+    focal_mm: float | None = camera.focal_length_mm
+    pitch_mm: float | None = pitch
+    f_mm = camera.focal_length_mm
+    if choice.confidence is CameraConfidence.GIVEN:
+        source = f"given: {camera.id} ({f_mm:g} mm, {across_mm:g} mm across {width_px} px)"
+    elif choice.confidence is CameraConfidence.DATASHEET:
+        source = f"camera database: {camera.id} ({f_mm:g} mm / {pitch * 1000:.3f} um pixels)"
+    elif choice.confidence is CameraConfidence.FOCAL_PLANE:
+        original = camera_tags.pixel_x_dimension_px if camera_tags is not None else None
+        note = "" if not original or original == width_px else f", image reduced from {original} px wide"
+        source = (
+            f"EXIF focal length {f_mm:g} mm and focal-plane resolution ({pitch * 1000:.3f} um pixels{note})"
+        )
+    else:  # the 35 mm equivalent: a field of view, no pixel pitch
+        f35 = camera_tags.focal_length_35mm_mm if camera_tags is not None else None
+        focal_mm, pitch_mm = known(tags.focal_length_mm), None
+        source = f"EXIF 35 mm equivalent focal length {f35:g} mm (diagonal field of view)"
     return Intrinsics(
         key=key,
         width_px=width_px,
         height_px=height_px,
-        focal_px=camera.focal_length_mm / pitch,
-        focal_length_mm=camera.focal_length_mm,
-        pixel_pitch_mm=pitch,
-        source=f"given: {camera.id} ({camera.focal_length_mm:g} mm, {across_mm:g} mm across {width_px} px)",
-    )
-
-
-def intrinsics_for(
-    *,
-    sample_path: str | os.PathLike[str],
-    make: str | None,
-    model: str | None,
-    focal_length_mm: float | None,
-    width_px: int,
-    height_px: int,
-) -> Intrinsics:
-    """The intrinsics of the camera that took ``sample_path`` (module docstring for the order)."""
-    key = (make or "", model or "", float(focal_length_mm or 0.0), int(width_px), int(height_px))
-    camera = match_exif(make, model, focal_length_mm, width_px, height_px)
-    if camera is not None:
-        # A portrait image of a landscape sensor swaps the axes.
-        same = camera.image_width_px == width_px
-        pitch = camera.pixel_pitch_x_mm if same else camera.pixel_pitch_y_mm
-        return Intrinsics(
-            key=key,
-            width_px=width_px,
-            height_px=height_px,
-            focal_px=camera.focal_length_mm / pitch,
-            focal_length_mm=camera.focal_length_mm,
-            pixel_pitch_mm=pitch,
-            source=(
-                f"camera database: {camera.id} ({camera.focal_length_mm:g} mm / {pitch * 1000:.3f} um pixels)"
-            ),
-        )
-    tags = _focal_plane_tags(sample_path)
-    resolution = _rational(tags.get("Exif.Photo.FocalPlaneXResolution"))
-    unit = _UNIT_MM.get(int(_rational(tags.get("Exif.Photo.FocalPlaneResolutionUnit")) or 2))
-    original_width = _rational(tags.get("Exif.Photo.PixelXDimension")) or float(width_px)
-    if focal_length_mm and resolution and unit:
-        pitch_original = unit / resolution  # mm per pixel of the original image
-        pitch = pitch_original * original_width / width_px
-        note = "" if original_width == width_px else f", image reduced from {original_width:.0f} px wide"
-        return Intrinsics(
-            key=key,
-            width_px=width_px,
-            height_px=height_px,
-            focal_px=focal_length_mm / pitch,
-            focal_length_mm=focal_length_mm,
-            pixel_pitch_mm=pitch,
-            source=f"EXIF focal length {focal_length_mm:g} mm and focal-plane resolution "
-            f"({pitch * 1000:.3f} um pixels{note})",
-        )
-    f35 = _rational(tags.get("Exif.Photo.FocalLengthIn35mmFilm"))
-    diagonal_px = (width_px**2 + height_px**2) ** 0.5
-    if f35:
-        return Intrinsics(
-            key=key,
-            width_px=width_px,
-            height_px=height_px,
-            focal_px=f35 * diagonal_px / _FULL_FRAME_DIAGONAL_MM,
-            focal_length_mm=focal_length_mm,
-            pixel_pitch_mm=None,
-            source=f"EXIF 35 mm equivalent focal length {f35:g} mm (diagonal field of view)",
-        )
-    return Intrinsics(
-        key=key,
-        width_px=width_px,
-        height_px=height_px,
-        focal_px=DEFAULT_FOCAL_FACTOR * max(width_px, height_px),
-        focal_length_mm=focal_length_mm,
-        pixel_pitch_mm=None,
-        source=f"GUESSED: no database camera, focal-plane resolution or 35 mm focal length in EXIF; "
-        f"{DEFAULT_FOCAL_FACTOR} x the longer side (the engine must refine it)",
+        focal_px=f_mm / pitch,
+        focal_length_mm=focal_mm,
+        pixel_pitch_mm=pitch_mm,
+        source=source,
     )
