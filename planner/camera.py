@@ -20,6 +20,10 @@ from .errors import CameraError
 _PITCH_TOLERANCE_RATIO = 0.03
 
 
+#: Diagonal of the 36 x 24 mm frame that "35 mm equivalent" focal lengths refer to, mm.
+FULL_FRAME_DIAGONAL_MM = math.hypot(36.0, 24.0)
+
+
 class Orientation(StrEnum):
     """How the camera sits relative to the flight line."""
 
@@ -83,26 +87,33 @@ class Camera:
                     f"camera {self.id!r}: {key} = {value!r} is not a positive number; "
                     f"give the real value from the camera's datasheet"
                 )
-        if self.shutter_s is not None and not (0 < self.shutter_s < 10):
-            raise CameraError(
-                f"camera {self.id!r}: shutter_s = {self.shutter_s!r} is outside 0-10 s; "
-                f"give the exposure time in seconds, e.g. 0.001 for 1/1000 s"
-            )
-        if not (1.0 <= self.sensor_width_mm <= 100.0 and 1.0 <= self.sensor_height_mm <= 100.0):
-            raise CameraError(
-                f"camera {self.id!r}: sensor {self.sensor_width_mm} x {self.sensor_height_mm} mm "
-                f"is outside 1-100 mm per side; sensor sizes are in millimetres"
-            )
-        if not (1.0 <= self.focal_length_mm <= 600.0):
-            raise CameraError(
-                f"camera {self.id!r}: focal_length_mm = {self.focal_length_mm} is outside 1-600 mm; "
-                f"give the real focal length, not the 35 mm equivalent"
-            )
-        if not (100 <= self.image_width_px <= 40000 and 100 <= self.image_height_px <= 40000):
-            raise CameraError(
-                f"camera {self.id!r}: image {self.image_width_px} x {self.image_height_px} px is "
-                f"outside 100-40000 px per side"
-            )
+        w_mm, h_mm, w_px, h_px = (
+            self.sensor_width_mm, self.sensor_height_mm, self.image_width_px, self.image_height_px
+        )  # fmt: skip
+        # (out of range, what is wrong and the fix), checked in this order
+        ranges = (
+            (
+                self.shutter_s is not None and not (0 < self.shutter_s < 10),
+                f"shutter_s = {self.shutter_s!r} is outside 0-10 s; give the exposure time in seconds, "
+                f"e.g. 0.001 for 1/1000 s",
+            ),
+            (
+                not (1.0 <= w_mm <= 100.0 and 1.0 <= h_mm <= 100.0),
+                f"sensor {w_mm} x {h_mm} mm is outside 1-100 mm per side; sensor sizes are in millimetres",
+            ),
+            (
+                not (1.0 <= self.focal_length_mm <= 600.0),
+                f"focal_length_mm = {self.focal_length_mm} is outside 1-600 mm; give the real focal "
+                f"length, not the 35 mm equivalent",
+            ),
+            (
+                not (100 <= w_px <= 40000 and 100 <= h_px <= 40000),
+                f"image {w_px} x {h_px} px is outside 100-40000 px per side",
+            ),
+        )
+        for out_of_range, message in ranges:
+            if out_of_range:
+                raise CameraError(f"camera {self.id!r}: {message}")
         pitch_x_um = self.pixel_pitch_x_mm * 1000.0
         pitch_y_um = self.pixel_pitch_y_mm * 1000.0
         for axis, pitch in (("x", pitch_x_um), ("y", pitch_y_um)):

@@ -156,9 +156,10 @@ def _shown(count: int, total: int, step: int, what: str) -> str:
     return f"{what}: every {_ordinal(step)} of\n{total:,} shown ({count:,})"
 
 
-def _draw_scale_bar(ax: Any, length_m: float, limits: tuple[float, float, float, float]) -> None:
-    """A scale bar of ``length_m`` in the lower right corner: alternating black and white
-    quarters in a white box, the length written above."""
+def draw_scale_bar(ax: Any, length_m: float, limits: tuple[float, float, float, float]) -> None:
+    """A scale bar of ``length_m`` in the lower right corner of a matplotlib map whose ``limits``
+    are (x0, x1, y0, y1) metres: alternating black and white quarters in a white box, the
+    length written above (the plan's map and the check's report maps)."""
     from matplotlib.patches import Rectangle
 
     _, x1, y0, y1 = limits
@@ -500,7 +501,7 @@ def render_map_figure(
     ax.ticklabel_format(useOffset=False, style="plain")
 
     # scale bar and north arrow
-    _draw_scale_bar(ax, scale_bar_length_m(x1 - x0), (x0, x1, y0, y1))
+    draw_scale_bar(ax, scale_bar_length_m(x1 - x0), (x0, x1, y0, y1))
     ax.annotate(
         "N",
         xy=(0.95, 0.96),

@@ -5,13 +5,8 @@ from __future__ import annotations
 import click
 
 from planner.camera import Camera
-from planner.camera_db import (
-    CameraFigures,
-    camera_figures,
-    camera_row,
-    get_camera,
-    load_cameras,
-)
+from planner.camera_db import get_camera, load_cameras
+from planner.camera_figures import CameraFigures, camera_figures, camera_row
 
 from ..common import echo_json, echo_table, json_option
 

@@ -6,7 +6,8 @@ from pathlib import Path
 
 import click
 
-from planner.gcp_layout import GcpOptions, plan_gcps, write_gcp_outputs
+from planner.gcp_layout import GcpOptions, plan_gcps
+from planner.gcp_outputs import write_gcp_outputs
 from planner.spec import load_spec
 from planner.survey import plan_survey
 

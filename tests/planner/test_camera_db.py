@@ -17,13 +17,13 @@ from shared_data import SHARED_DATA
 from planner.camera import Camera, Orientation
 from planner.camera_db import (
     MAPPING_KEYS,
-    camera_figures,
     camera_from_mapping,
     get_camera,
     load_cameras,
     match_exif,
     parse_cameras,
 )
+from planner.camera_figures import camera_figures
 from planner.errors import CameraError, InputError
 
 SEQUOIA_DIR = SHARED_DATA / "garfield_rgb"
@@ -187,23 +187,6 @@ def test_gsd_height_round_trip(camera_id: str, gsd_cm: float) -> None:
     assert camera.height_for_gsd_m(camera.gsd_cm(height_m)) == pytest.approx(height_m, rel=1e-9)
     # The guaranteed GSD is the coarser axis: neither axis is coarser than asked.
     assert max(camera.gsd_x_cm(height_m), camera.gsd_y_cm(height_m)) <= gsd_cm * (1 + 1e-9)
-
-
-def test_figures_of_one_camera_follow_from_its_geometry() -> None:
-    camera = get_camera("dji-phantom-4-pro")
-    figures = camera_figures(camera, height_agl_m=100.0, gsd_targets_cm=(1.0, 2.0, 3.0))
-    # DJI's datasheet: FOV 84 deg, 8.8 mm / 24 mm equivalent.
-    assert figures.fov_diagonal_deg == pytest.approx(84.0, abs=0.5)
-    assert figures.focal_length_35mm_equiv_mm == pytest.approx(24.0, abs=0.3)
-    # 2.412 um x 100 m / 8.8 mm = 2.741 cm; footprint 5472 px x 2.741 cm = 150 m.
-    assert figures.gsd_cm == pytest.approx(2.741, abs=0.001)
-    assert figures.footprint_width_m == pytest.approx(150.0, abs=0.1)
-    assert figures.footprint_height_m == pytest.approx(100.0, abs=0.1)
-    assert [gsd for gsd, _ in figures.heights_for_gsd] == [1.0, 2.0, 3.0]
-    assert figures.heights_for_gsd[1][1] == pytest.approx(2 * figures.heights_for_gsd[0][1])
-    data = figures.to_dict()
-    assert data["id"] == "dji-phantom-4-pro"
-    assert data["at_height"]["gsd_cm"] == figures.gsd_cm  # type: ignore[index]
 
 
 # --- EXIF matching ------------------------------------------------------------------------------

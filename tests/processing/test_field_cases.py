@@ -23,13 +23,13 @@ from shared_data import SHARED_DATA
 from test_footprints import CAMERA, FRAME, ORIGIN_X_M, ORIGIN_Y_M, make_frames
 
 from acquisition.exif import read_tags_and_camera
+from planner.camera import FULL_FRAME_DIAGONAL_MM
 from planner.camera_db import get_camera
 from processing.check import run_check
 from processing.footprints import project_footprints, world_from_camera
 from processing.frames import AltitudeReference
 from processing.ground import FlatGround
 from processing.image_tags import (
-    FULL_FRAME_DIAGONAL_MM,
     CameraConfidence,
     display_name,
     pix4d_from_dji_gimbal,
