@@ -1,4 +1,4 @@
-"""Sorties by endurance, and resume plans for a flight cut short.
+"""Sorties by endurance.
 
 A plan longer than one battery is split into sorties, each a mission of its own that takes off
 from home, flies a contiguous block of lines and returns home. The split is made at line
@@ -10,15 +10,11 @@ a whole (transit from home and back, climb and descent, turns, holds), so a sort
 when the summary would say it fits. With ``scale_flight = "sorties"`` the passes of each height
 ([[survey.scale]]) are never mixed in one sortie.
 
-A resume plan flies what is left of a plan from one station on (the station's index in flight
-order, the ``station`` property of stations.geojson): the line of that station from that station,
-then every line the plan flies after it. The station can be given, or read from the monitor's
-triggers.csv: the last planned station a camera event was recorded at.
+Each sortie is built as a part of the plan (planner.partial); resume plans are planner.resume.
 """
 
 from __future__ import annotations
 
-import csv
 import dataclasses
 import logging
 import math
@@ -26,22 +22,14 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
-from numpy.typing import NDArray
-
-from .errors import InputError, PlanningError, SpecError
-from .exposure import from_pass_frame
+from .errors import PlanningError, SpecError
 from .lines import Segment
-from .mission_builder import BuiltMission, PassPlan, build_mission
+from .mission_builder import BuiltMission, PassPlan
+from .partial import build_part, part_plan, plan_layout, segment_xy
 from .plan import PlanLayout, SurveyPlan
 from .summary import MAX_MISSION_ITEMS
 
 log = logging.getLogger(__name__)
-
-#: The largest distance between a recorded camera event and the planned station it is matched
-#: to, as a share of the station's trigger distance (and at least MIN_MATCH_M).
-MATCH_SHARE = 0.5
-MIN_MATCH_M = 5.0
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -83,7 +71,7 @@ class _Unit:
 def split_sorties(plan: SurveyPlan) -> list[Sortie]:
     """Split ``plan`` into sorties that each fit the vehicle's endurance less its reserve and the
     autopilot's mission capacity. Raises PlanningError when one line alone does not fit."""
-    layout = _layout(plan)
+    layout = plan_layout(plan)
     vehicle = layout.spec.vehicle
     usable_s = vehicle.usable_flight_s
     if usable_s is None:
@@ -104,7 +92,7 @@ def split_sorties(plan: SurveyPlan) -> list[Sortie]:
     def attempt(start: int, count: int) -> tuple[BuiltMission, bool]:
         key = (start, count)
         if key not in cache:
-            built = _build(plan, layout, _pass_plans(layout, units[start : start + count]))
+            built = build_part(plan, layout, _pass_plans(layout, units[start : start + count]))
             fits = built.flight_time_s <= usable_s + 1e-9 and len(built.mission.items) + 1 <= capacity
             cache[key] = (built, fits)
         return cache[key]
@@ -153,7 +141,7 @@ def split_sorties(plan: SurveyPlan) -> list[Sortie]:
     for number, (first, count) in enumerate(chunks, start=1):
         built, _ = attempt(first, count)
         chosen = units[first : first + count]
-        sortie_plan = _plan_from_built(
+        sortie_plan = part_plan(
             plan, layout, built, f"{plan.name} sortie {number}", _pass_plans(layout, chosen), sortie=True
         )
         sorties.append(
@@ -192,12 +180,6 @@ def _too_long(
     )
 
 
-def _layout(plan: SurveyPlan) -> PlanLayout:
-    if plan.layout is None:
-        raise PlanningError("this plan holds no layout to split (plan it with planner.survey.plan_survey)")
-    return plan.layout
-
-
 def _units(layout: PlanLayout) -> list[_Unit]:
     """The lines of every pass in the order sorties take them: pass by pass, rows ascending."""
     spec = layout.spec
@@ -231,7 +213,7 @@ def _units(layout: PlanLayout) -> list[_Unit]:
 
 
 def _centre(pp: PassPlan, seg: Segment) -> tuple[float, float]:
-    x, y = _segment_xy(pp, seg)
+    x, y = segment_xy(pp, seg)
     return float(x.mean()), float(y.mean())
 
 
@@ -245,204 +227,12 @@ def _pass_plans(layout: PlanLayout, units: Sequence[_Unit]) -> list[PassPlan]:
     ]
 
 
-def _build(plan: SurveyPlan, layout: PlanLayout, pass_plans: list[PassPlan]) -> BuiltMission:
-    """The mission of some lines of ``plan``, built (and fitted to the terrain) as the plan was."""
-    spec = layout.spec
-    built = build_mission(
-        spec=spec,
-        frame=plan.frame,
-        home=plan.home,
-        home_xy=plan.home_xy_m,
-        alt_agl_m=layout.alt_agl_m,
-        speed_m_s=layout.speed_m_s,
-        passes=pass_plans,
-        zones_xy=plan.exclusions_xy,
-        true_north_grid_deg=layout.true_north_grid_deg,
-    )
-    if spec.terrain is not None and layout.dem is not None:
-        from .terrain_follow import apply_terrain
-
-        built, _, _ = apply_terrain(
-            built,
-            dem=layout.dem,
-            terrain=spec.terrain,
-            frame=plan.frame,
-            home=plan.home,
-            home_xy=plan.home_xy_m,
-            alt_agl_m=layout.alt_agl_m,
-            speed_m_s=layout.speed_m_s,
-            max_alt_agl_m=spec.vehicle.max_alt_agl_m,
-            passes=pass_plans,
-            camera=spec.camera,
-            footprint_scale=layout.footprint_scale,
-        )
-    return built
-
-
-def _plan_from_built(
-    plan: SurveyPlan,
-    layout: PlanLayout,
-    built: BuiltMission,
-    name: str,
-    pass_plans: list[PassPlan],
-    *,
-    sortie: bool = False,
-) -> SurveyPlan:
-    """A plan of its own for part of ``plan``: same area and passes, this mission's lines,
-    stations, path and flight figures."""
-    from .summary import limit_warnings
-
-    passes = tuple(dataclasses.replace(p, lines=built.lines.get(p.index, ())) for p in plan.passes)
-    vehicle = layout.spec.vehicle
-    warnings = tuple(
-        limit_warnings(
-            autopilot=vehicle.autopilot,
-            item_count=len(built.mission.items),
-            flight_time_s=built.flight_time_s,
-            max_flight_time_min=(
-                vehicle.usable_flight_s / 60.0
-                if sortie and vehicle.usable_flight_s is not None
-                else vehicle.max_flight_time_min
-            ),
-        )
-    )
-    summary = dataclasses.replace(
-        plan.summary,
-        name=name,
-        line_count=sum(len({line.line_index for line in p.lines}) for p in passes),
-        photo_count=len(built.stations),
-        flight_distance_m=built.flight_distance_m,
-        flight_time_s=built.flight_time_s,
-        item_count=len(built.mission.items),
-        warnings=warnings,
-    )
-    mission = dataclasses.replace(built.mission, metadata={**built.mission.metadata, "name": name})
-    return dataclasses.replace(
-        plan,
-        name=name,
-        passes=passes,
-        stations=built.stations,
-        path_xy_m=built.path_xy_m,
-        path_lonlat_deg=built.path_lonlat_deg,
-        mission=mission,
-        home=mission.home,
-        summary=summary,
-        warnings=warnings,
-        layout=dataclasses.replace(layout, pass_plans=tuple(pass_plans)),
-    )
-
-
-def _segment_xy(pp: PassPlan, seg: Segment) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    u = seg.u_first_m + np.arange(seg.count) * seg.spacing_m
-    x, y = from_pass_frame(u, np.full_like(u, seg.v_m), pp.direction_deg)
-    return np.asarray(x, float), np.asarray(y, float)
-
-
-def _station_keys(
-    pass_index: NDArray[np.int32], x: NDArray[np.float64], y: NDArray[np.float64]
-) -> list[tuple[int, float, float]]:
-    return [
-        (int(p), round(float(a), 2), round(float(b), 2)) for p, a, b in zip(pass_index, x, y, strict=True)
-    ]
-
-
-# --- resume ------------------------------------------------------------------------------------
-
-
-def resume_plan(plan: SurveyPlan, from_station: int) -> SurveyPlan:
-    """What is left of ``plan`` from station ``from_station`` on (0-based flight order, the
-    ``station`` of stations.geojson): that station and every later one, as one mission from home."""
-    layout = _layout(plan)
-    n = len(plan.stations)
-    if not 0 <= from_station < n:
-        raise InputError(
-            f"--resume-from {from_station}: the plan has stations 0 to {n - 1} (the station property "
-            f"of stations.geojson); give one of them"
-        )
-    st = plan.stations
-    remaining = set(_station_keys(st.pass_index[from_station:], st.x_m[from_station:], st.y_m[from_station:]))
-    pass_plans = []
-    for pp in layout.pass_plans:
-        parts: list[tuple[Segment, int, int]] = []  # (segment, first kept k, last kept k)
-        for seg in pp.segments:
-            x, y = _segment_xy(pp, seg)
-            kept = [
-                k
-                for k in range(seg.count)
-                if (pp.index, round(float(x[k]), 2), round(float(y[k]), 2)) in remaining
-            ]
-            if kept:
-                parts.append((seg, kept[0], kept[-1]))
-        new_segments = []
-        for i, (seg, k0, k1) in enumerate(parts):
-            whole_before = i > 0 and parts[i - 1][2] == parts[i - 1][0].count - 1
-            whole_after = i + 1 < len(parts) and parts[i + 1][1] == 0
-            new_segments.append(
-                dataclasses.replace(
-                    seg,
-                    u_first_m=seg.u_first_m + k0 * seg.spacing_m,
-                    count=k1 - k0 + 1,
-                    join_lo=seg.join_lo and k0 == 0 and whole_before and parts[i - 1][0].row == seg.row,
-                    join_hi=(
-                        seg.join_hi and k1 == seg.count - 1 and whole_after and parts[i + 1][0].row == seg.row
-                    ),
-                )
-            )
-        pass_plans.append(dataclasses.replace(pp, segments=tuple(new_segments)))
-    built = _build(plan, layout, pass_plans)
-    resumed = _plan_from_built(
-        plan, layout, built, f"{plan.name} resumed from station {from_station}", pass_plans
-    )
-    if len(resumed.stations) != n - from_station:
-        raise PlanningError(
-            f"the resume plan holds {len(resumed.stations)} stations, not the {n - from_station} left "
-            f"after station {from_station}; a planner bug: report it with the mission spec"
-        )
-    return resumed
-
-
-def last_station_from_record(plan: SurveyPlan, record: Path) -> int:
-    """The last planned station a camera event of the monitor's record (its folder, or its
-    triggers.csv) was taken at, in flight order: each event is matched to the next planned
-    station within MATCH_SHARE of the trigger distance (at least MIN_MATCH_M)."""
-    path = record / "triggers.csv" if record.is_dir() else record
-    if not path.is_file():
-        raise InputError(f"{record}: no triggers.csv there; give the folder sfap monitor recorded into")
-    try:
-        with path.open(encoding="utf-8", newline="") as handle:
-            rows = list(csv.DictReader(handle))
-        points = [(float(r["lon_deg"]), float(r["lat_deg"])) for r in rows]
-    except (KeyError, ValueError, TypeError, UnicodeDecodeError, csv.Error) as error:
-        raise InputError(f"{path}: not a triggers.csv of sfap monitor ({error})") from None
-    points = [p for p in points if math.isfinite(p[0]) and math.isfinite(p[1])]
-    if not points:
-        raise InputError(f"{path}: no camera event with a position; give the station with --resume-from")
-    st = plan.stations
-    trigger_m = {p.index: p.trigger_distance_m for p in plan.passes}
-    radius = np.array([max(MIN_MATCH_M, MATCH_SHARE * trigger_m[int(p)]) for p in st.pass_index])
-    lon = np.array([p[0] for p in points])
-    lat = np.array([p[1] for p in points])
-    ex, ey = plan.frame.to_xy(lon, lat)
-    last = -1
-    for x, y in zip(np.atleast_1d(ex), np.atleast_1d(ey), strict=True):
-        d = np.hypot(st.x_m[last + 1 :] - x, st.y_m[last + 1 :] - y)
-        hits = np.nonzero(d <= radius[last + 1 :])[0]
-        if hits.size:
-            last = last + 1 + int(hits[0])
-    if last < 0:
-        raise InputError(
-            f"{path}: none of its {len(points)} camera events lies at a station of this plan; is it the "
-            f"record of this mission? Give the station with --resume-from"
-        )
-    return last
-
-
 # --- writing ------------------------------------------------------------------------------------
 
 
 def sorties_summary(plan: SurveyPlan, sorties: Sequence[Sortie]) -> dict[str, object]:
     """The "sorties" section of the combined summary.json."""
-    vehicle = _layout(plan).spec.vehicle
+    vehicle = plan_layout(plan).spec.vehicle
     return {
         "endurance_s": vehicle.endurance_s,
         "reserve_pct": vehicle.reserve_pct,

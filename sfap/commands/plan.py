@@ -91,13 +91,8 @@ def command(
     Example: sfap plan missions/bardenas-gully.toml -o out/gully
     """
     from planner.errors import InputError
-    from planner.sorties import (
-        last_station_from_record,
-        resume_plan,
-        sortie_folder,
-        sorties_summary,
-        split_sorties,
-    )
+    from planner.resume import last_station_from_record, resume_plan
+    from planner.sorties import sortie_folder, sorties_summary, split_sorties
 
     if resume_from is not None and resume_record is not None:
         raise InputError("give --resume-from or --resume-record, not both")

@@ -1,58 +1,21 @@
-"""Sorties by endurance and resume plans: every sortie within endurance less its reserve, the
-sorties together fly the whole plan's stations once each, and a resume plan flies exactly the
-stations left."""
+"""Sorties by endurance: every sortie within endurance less its reserve, and the sorties together
+fly the whole plan's stations once each."""
 
 from __future__ import annotations
 
-import csv
-import math
 from collections import Counter
-from pathlib import Path
-from typing import Any
 
-import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from pyproj import Geod
-from shapely.geometry import Polygon
-from survey_oracles import REPO
+from sortie_cases import GEOD_WGS84 as GEOD
+from sortie_cases import LAT0, LON0, M_PER_DEG_LAT, M_PER_DEG_LON, lonlat_polygon, spec_with, station_keys
 
-from planner.errors import InputError, PlanningError
+from planner.errors import PlanningError
 from planner.mission import MavCmd
 from planner.plan import SurveyPlan
-from planner.sorties import last_station_from_record, resume_plan, split_sorties
-from planner.spec import MissionSpec, parse_spec
+from planner.sorties import split_sorties
 from planner.survey import plan_polygons
-
-LON0, LAT0 = -1.60, 42.50
-M_PER_DEG_LAT = 111_132.0
-M_PER_DEG_LON = 111_320.0 * math.cos(math.radians(LAT0))
-GEOD = Geod(ellps="WGS84")
-
-
-def lonlat_polygon(xy: list[tuple[float, float]]) -> Polygon:
-    return Polygon([(LON0 + x / M_PER_DEG_LON, LAT0 + y / M_PER_DEG_LAT) for x, y in xy])
-
-
-def spec_with(survey: dict[str, Any], vehicle: dict[str, Any]) -> MissionSpec:
-    base = {"gsd_cm": 2.0, "front_overlap_pct": 75, "side_overlap_pct": 65, "speed_m_s": 8.0}
-    data = {
-        "name": "sorties",
-        "area": "area.geojson",
-        "camera": {"model": "dji-phantom-4-pro"},
-        "survey": {**base, **survey},
-        "vehicle": {"type": "multirotor", "max_alt_agl_m": 400, **vehicle},
-    }
-    return parse_spec(data, REPO / "tests" / "spec.toml")
-
-
-def station_keys(plan: SurveyPlan) -> Counter[tuple[int, float, float]]:
-    st_ = plan.stations
-    return Counter(
-        (int(p), round(float(x), 1), round(float(y), 1))
-        for p, x, y in zip(st_.pass_index, st_.x_m, st_.y_m, strict=True)
-    )
 
 
 def path_length_m(plan: SurveyPlan) -> float:
@@ -144,46 +107,3 @@ def test_scales_as_sorties_never_mix_heights() -> None:
         heights = {round(float(a), 3) for a in sortie.plan.stations.alt_agl_m}
         assert len(heights) == 1
     assert station_keys(plan) == sum((station_keys(s.plan) for s in sorties), Counter())
-
-
-@settings(max_examples=10, deadline=None, derandomize=True)
-@given(share=st.floats(0.0, 0.999))
-def test_resume_flies_exactly_the_stations_left(share: float) -> None:
-    spec = spec_with({"crosshatch": True}, {})
-    plan = plan_polygons(spec, [lonlat_polygon([(0, 0), (400, 0), (400, 300), (0, 300)])], [])
-    n = int(share * len(plan.stations))
-    resumed = resume_plan(plan, n)
-    st_ = plan.stations
-    left = Counter(
-        (int(p), round(float(x), 1), round(float(y), 1))
-        for p, x, y in zip(st_.pass_index[n:], st_.x_m[n:], st_.y_m[n:], strict=True)
-    )
-    assert station_keys(resumed) == left
-    assert int(resumed.mission.items[0].command) == MavCmd.NAV_TAKEOFF
-
-
-def test_resume_from_the_monitor_record(tmp_path: Path) -> None:
-    spec = spec_with({}, {})
-    plan = plan_polygons(spec, [lonlat_polygon([(0, 0), (400, 0), (400, 300), (0, 300)])], [])
-    reached = len(plan.stations) // 3
-    rng = np.random.default_rng(1)
-    with (tmp_path / "triggers.csv").open("w", newline="") as handle:
-        writer = csv.writer(handle)
-        writer.writerow(["time_utc_s", "seq", "lat_deg", "lon_deg", "alt_amsl_m", "alt_rel_home_m",
-                         "roll_deg", "pitch_deg", "yaw_deg", "source"])  # fmt: skip
-        for k in range(reached + 1):
-            # GNSS noise of about a metre, as a plain receiver records
-            lon = plan.stations.lon_deg[k] + rng.normal(0, 1.0) / M_PER_DEG_LON
-            lat = plan.stations.lat_deg[k] + rng.normal(0, 1.0) / M_PER_DEG_LAT
-            writer.writerow([1000 + k, k, lat, lon, 100, 60, 0, 0, 0, "CAMERA_FEEDBACK"])
-    assert last_station_from_record(plan, tmp_path) == reached
-    (tmp_path / "other").mkdir()
-    with pytest.raises(InputError, match=r"no triggers\.csv"):
-        last_station_from_record(plan, tmp_path / "other")
-
-
-def test_resume_from_a_station_outside_the_plan_is_refused() -> None:
-    spec = spec_with({}, {})
-    plan = plan_polygons(spec, [lonlat_polygon([(0, 0), (300, 0), (300, 200), (0, 200)])], [])
-    with pytest.raises(InputError, match="has stations 0 to"):
-        resume_plan(plan, len(plan.stations))
