@@ -23,20 +23,20 @@ import numpy as np
 from PIL import Image, ImageChops, ImageDraw, ImageFont
 from shapely.geometry import MultiPolygon, Polygon
 
-from .mapplot import (
-    _AREA_EDGE,
-    _AREA_FACE,
-    _EXCLUSION,
-    _PASS_COLOURS,
-    _lines_text,
-    _shown,
-    _thin,
+from .maplayout import AREA_EDGE as _AREA_EDGE
+from .maplayout import AREA_FACE as _AREA_FACE
+from .maplayout import EXCLUSION_COLOUR as _EXCLUSION
+from .maplayout import PASS_COLOURS as _PASS_COLOURS
+from .maplayout import (
     caption_text,
     header_text,
     map_frame,
     pass_legend_counts,
     scale_bar_length_m,
 )
+from .maplayout import lines_text as _lines_text
+from .maplayout import shown_text as _shown
+from .maplayout import thin as _thin
 from .plan import PassKind, SurveyPlan
 
 _SUPERSAMPLE = 2

@@ -40,7 +40,8 @@ from pyproj import CRS
 from shapely.geometry import Polygon, mapping
 from shapely.geometry.polygon import orient
 
-from planner.mapplot import polygon_path, scale_bar_length_m
+from planner.maplayout import scale_bar_length_m
+from planner.mapplot import polygon_path
 from planner.outputs import atomic_write_bytes, atomic_write_text, staged_output_dir
 from planner.plan import SurveyPlan
 

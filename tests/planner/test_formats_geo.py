@@ -35,7 +35,8 @@ from planner.formats.geojson import (
 )
 from planner.formats.kml import KML_NS, ordinal, write_kml
 from planner.geo import LocalFrame, geodesic_distance_m
-from planner.mapplot import render_map_figure, render_map_png, scale_bar_length_m
+from planner.maplayout import scale_bar_length_m
+from planner.mapplot import render_map_figure, render_map_png
 from planner.mission import Autopilot, HomePosition, MavCmd, Mission, MissionItem
 from planner.plan import FlightLine, FlightPass, PassKind, Stations, Summary, SurveyPlan
 

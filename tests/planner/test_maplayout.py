@@ -9,7 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from planner.mapplot import pass_line_count, render_map_figure
+from planner.maplayout import pass_line_count
+from planner.mapplot import render_map_figure
 from planner.spec import load_spec
 from planner.survey import plan_survey
 
@@ -76,7 +77,8 @@ def test_map_png_draws_every_camera_on_segment_where_it_lies(tmp_path: Path) -> 
     import numpy as np
     from PIL import Image
 
-    from planner.mapplot import _PASS_COLOURS, map_frame, render_map_png
+    from planner.maplayout import PASS_COLOURS, map_frame
+    from planner.mapplot import render_map_png
 
     plan = plan_survey(load_spec(MISSIONS[[m.stem for m in MISSIONS].index("field-concave")]))
     points = [ln for p in plan.passes for ln in p.lines]
@@ -85,7 +87,7 @@ def test_map_png_draws_every_camera_on_segment_where_it_lies(tmp_path: Path) -> 
     png = np.asarray(Image.open(render_map_png(plan, tmp_path / "map.png")).convert("RGB")).astype(int)
     frame = map_frame(plan)
     ox, oy = plan.home_xy_m
-    blue = np.array([int(_PASS_COLOURS[plan.passes[0].kind][i : i + 2], 16) for i in (1, 3, 5)])
+    blue = np.array([int(PASS_COLOURS[plan.passes[0].kind][i : i + 2], 16) for i in (1, 3, 5)])
     for ln in points:
         # a segment: its own colour somewhere along it (station dots are drawn over it);
         # a one-photo segment (start = end): its station's dot
