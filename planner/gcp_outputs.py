@@ -9,7 +9,7 @@ import json
 from pathlib import Path
 from xml.sax.saxutils import escape
 
-from .gcp_layout import GcpLayout
+from .gcp_layout import GcpLayout, GcpOptions, plan_gcps
 from .outputs import atomic_write_text, staged_output_dir
 from .plan import SurveyPlan
 
@@ -131,3 +131,17 @@ def write_gcp_outputs(
         )
         render_gcp_map(plan, layout, str(staging / "gcp_map.png"))
     return [final / name for name in GCP_FILES]
+
+
+def plan_gcp_folder(
+    spec_file: str | Path, options: GcpOptions, out_dir: str | Path, *, overwrite: bool = False
+) -> tuple[SurveyPlan, GcpLayout]:
+    """What ``sfap gcp-plan`` does: plan the survey of the mission spec ``spec_file``, lay out
+    its ground control (planner.gcp_layout) and write the files into ``out_dir``."""
+    from .spec import load_spec
+    from .survey import plan_survey
+
+    plan = plan_survey(load_spec(spec_file))
+    layout = plan_gcps(plan, options)
+    write_gcp_outputs(plan, layout, str(out_dir), overwrite=overwrite)
+    return plan, layout

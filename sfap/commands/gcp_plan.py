@@ -6,10 +6,8 @@ from pathlib import Path
 
 import click
 
-from planner.gcp_layout import GcpOptions, plan_gcps
-from planner.gcp_outputs import write_gcp_outputs
-from planner.spec import load_spec
-from planner.survey import plan_survey
+from planner.gcp_layout import GcpOptions
+from planner.gcp_outputs import plan_gcp_folder
 
 from ..common import dumps_json, echo_table, json_option, overwrite_option
 
@@ -73,9 +71,7 @@ def command(
         edge_margin_m=edge_margin_m,
         min_separation_m=min_separation_m,
     )
-    plan = plan_survey(load_spec(spec_file))
-    layout = plan_gcps(plan, options)
-    write_gcp_outputs(plan, layout, str(out_dir), overwrite=overwrite)
+    plan, layout = plan_gcp_folder(spec_file, options, out_dir, overwrite=overwrite)
     if as_json:
         click.echo(dumps_json({**layout.as_dict(), "output_dir": str(out_dir)}))
         return

@@ -6,9 +6,8 @@ from pathlib import Path
 
 import click
 
-from planner.export import OUTPUT_FILES, write_outputs
-from planner.spec import load_spec
-from planner.survey import plan_survey
+from planner.plan_run import plan_spec
+from planner.sorties import sortie_folder
 
 from ..common import dumps_json, echo_table, json_option, overwrite_option, progress
 
@@ -90,37 +89,11 @@ def command(
 
     Example: sfap plan missions/bardenas-gully.toml -o out/gully
     """
-    from planner.errors import InputError
-    from planner.resume import last_station_from_record, resume_plan
-    from planner.sorties import sortie_folder, sorties_summary, split_sorties
-
-    if resume_from is not None and resume_record is not None:
-        raise InputError("give --resume-from or --resume-record, not both")
-    spec = load_spec(spec_file)
-    plan = plan_survey(spec)
-    if resume_record is not None:
-        resume_from = last_station_from_record(plan, resume_record) + 1
-        if resume_from >= len(plan.stations):
-            raise InputError(
-                f"{resume_record}: the record reached the last station ({resume_from - 1}); nothing is "
-                f"left to fly"
-            )
-    if resume_from is not None:
-        plan = resume_plan(plan, resume_from)
-    sorties = split_sorties(plan) if spec.vehicle.endurance_s is not None else []
-    total = len(OUTPUT_FILES) * (1 + len(sorties))
-    with progress("writing", total, enabled=not no_progress and not as_json) as advance:
-        if sorties:
-            from planner.sorties import write_with_sorties
-
-            write_with_sorties(plan, sorties, out_dir, overwrite=overwrite, progress=advance)
-        else:
-            write_outputs(plan, out_dir, overwrite=overwrite, progress=advance)
-    summary = plan.summary.as_dict()
-    if sorties:
-        summary["sorties"] = sorties_summary(plan, sorties)
-    if resume_from is not None:
-        summary["resumed_from_station"] = resume_from
+    run = plan_spec(spec_file, resume_from=resume_from, resume_record=resume_record)
+    plan, sorties, spec = run.plan, run.sorties, run.spec
+    with progress("writing", run.file_count, enabled=not no_progress and not as_json) as advance:
+        run.write(out_dir, overwrite=overwrite, progress=advance)
+    summary = run.summary()
     if as_json:
         click.echo(dumps_json({**summary, "output_dir": str(out_dir)}))
         return

@@ -1,0 +1,95 @@
+"""What ``sfap plan`` does, as one library call: a mission spec planned (planner.survey), cut to
+what is left after a flight cut short (planner.resume), split into sorties when the vehicle has
+an endurance (planner.sorties), and its files written (planner.export)."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .errors import InputError
+from .plan import SurveyPlan
+from .sorties import Sortie
+from .spec import MissionSpec
+
+
+@dataclass(frozen=True, kw_only=True)
+class PlanRun:
+    """A planned spec: the plan (resumed when asked), its sorties (none when the vehicle has no
+    endurance) and the station it was resumed from (None: the whole mission)."""
+
+    spec: MissionSpec
+    plan: SurveyPlan
+    sorties: tuple[Sortie, ...] = field(default=())
+    resumed_from_station: int | None = None
+
+    @property
+    def file_count(self) -> int:
+        """How many files :meth:`write` writes (for a progress bar)."""
+        from .export import OUTPUT_FILES
+
+        return len(OUTPUT_FILES) * (1 + len(self.sorties))
+
+    def write(
+        self,
+        out_dir: str | os.PathLike[str],
+        *,
+        overwrite: bool = False,
+        progress: Callable[[int], None] | None = None,
+    ) -> list[Path]:
+        """Every file of the plan (and of each sortie, in sortie-NN/) into ``out_dir``, all or
+        nothing; ``progress(1)`` after each file."""
+        if self.sorties:
+            from .sorties import write_with_sorties
+
+            return write_with_sorties(
+                self.plan, self.sorties, Path(out_dir), overwrite=overwrite, progress=progress
+            )
+        from .export import write_outputs
+
+        return write_outputs(self.plan, out_dir, overwrite=overwrite, progress=progress)
+
+    def summary(self) -> dict[str, object]:
+        """summary.json's figures, with the sorties and the station resumed from."""
+        from .sorties import sorties_summary
+
+        summary = self.plan.summary.as_dict()
+        if self.sorties:
+            summary["sorties"] = sorties_summary(self.plan, self.sorties)
+        if self.resumed_from_station is not None:
+            summary["resumed_from_station"] = self.resumed_from_station
+        return summary
+
+
+def plan_spec(
+    spec_file: str | os.PathLike[str],
+    *,
+    resume_from: int | None = None,
+    resume_record: str | os.PathLike[str] | None = None,
+) -> PlanRun:
+    """Plan the mission spec ``spec_file``; with ``resume_from`` (a station, 0-based in flight
+    order) or ``resume_record`` (the folder sfap monitor recorded, or its triggers.csv: after
+    the last station it reached) only what is left. Sorties when the spec's vehicle has an
+    endurance."""
+    from .resume import last_station_from_record, resume_plan
+    from .sorties import split_sorties
+    from .spec import load_spec
+    from .survey import plan_survey
+
+    if resume_from is not None and resume_record is not None:
+        raise InputError("give --resume-from or --resume-record, not both")
+    spec = load_spec(Path(spec_file))
+    plan = plan_survey(spec)
+    if resume_record is not None:
+        resume_from = last_station_from_record(plan, Path(resume_record)) + 1
+        if resume_from >= len(plan.stations):
+            raise InputError(
+                f"{resume_record}: the record reached the last station ({resume_from - 1}); nothing is "
+                f"left to fly"
+            )
+    if resume_from is not None:
+        plan = resume_plan(plan, resume_from)
+    sorties = tuple(split_sorties(plan)) if spec.vehicle.endurance_s is not None else ()
+    return PlanRun(spec=spec, plan=plan, sorties=sorties, resumed_from_station=resume_from)
