@@ -12,7 +12,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import pytest
 import shapely
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
@@ -20,7 +19,6 @@ from shapely.geometry import LineString, Polygon
 from survey_oracles import check_plan, make_spec, replay_at_loop_rate
 
 from planner.camera import Orientation
-from planner.errors import SpecError
 from planner.mission import Autopilot, MavCmd
 from planner.survey import plan_polygons
 
@@ -193,32 +191,6 @@ def test_px4_items_have_no_home_and_use_gimbal_manager() -> None:
     assert commands[0] == MavCmd.NAV_TAKEOFF
     assert MavCmd.DO_GIMBAL_MANAGER_PITCHYAW in commands and MavCmd.DO_MOUNT_CONTROL not in commands
     assert commands[-1] == MavCmd.NAV_RETURN_TO_LAUNCH
-
-
-def test_speed_too_fast_is_refused_or_lowered() -> None:
-    square = [(0, 0), (200, 0), (200, 150), (0, 150)]
-    spec = make_spec({"gsd_cm": 1.0, "speed_m_s": 15.0, "front_overlap_pct": 90})
-    with pytest.raises(SpecError, match=r"speed_m_s = 15 is too fast.*at most"):
-        plan_polygons(spec, [to_lonlat_polygon(square)], [])
-    spec = make_spec({"gsd_cm": 1.0, "speed_m_s": 15.0, "front_overlap_pct": 90, "adjust_speed": True})
-    plan = plan_polygons(spec, [to_lonlat_polygon(square)], [])
-    assert plan.summary.speed_m_s <= plan.summary.max_speed_m_s
-    assert plan.warnings and "lowered" in plan.warnings[0]
-
-
-def test_blur_limits_the_speed() -> None:
-    square = [(0, 0), (200, 0), (200, 150), (0, 150)]
-    camera = {"model": "dji-phantom-4-pro", "shutter_s": 0.01}  # 1/100 s: slow
-    spec = make_spec({"gsd_cm": 1.0, "speed_m_s": 3.0, "front_overlap_pct": 60}, camera=camera)
-    with pytest.raises(SpecError, match="blurs"):
-        plan_polygons(spec, [to_lonlat_polygon(square)], [])
-
-
-def test_gsd_above_the_height_limit_is_refused() -> None:
-    square = [(0, 0), (200, 0), (200, 150), (0, 150)]
-    spec = make_spec({"gsd_cm": 15.0})  # 548 m above ground with this camera; the limit is 400 m
-    with pytest.raises(SpecError, match="max_alt_agl_m"):
-        plan_polygons(spec, [to_lonlat_polygon(square)], [])
 
 
 def test_edge_coverage_line_count_is_minimal() -> None:
