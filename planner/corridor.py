@@ -152,12 +152,10 @@ def plan_corridor(spec: MissionSpec) -> SurveyPlan:
     return steps.finish_plan(
         spec,
         site,
+        done,
         fit,
         home_xy,
         alt_agl_m=alt_agl_m,
-        speed_m_s=laid.speed_m_s,
-        pass_plans=laid.piece_passes,
-        views=laid.views,
         flight_passes=passes,
         warnings=warnings,
         what="corridor",
@@ -196,13 +194,10 @@ class _Attempt:
     built: BuiltMission
     run_of_station: np.ndarray  # per station: its run
 
-    @property
-    def terrain_passes(self) -> list[PassPlan]:
-        return self.runs.piece_passes
-
-    @property
-    def speed_m_s(self) -> float:
-        return self.runs.speed_m_s
+    # What planner.survey_steps reads of an attempt: the pieces judge the terrain's overlaps.
+    terrain_passes = property(lambda self: self.runs.piece_passes)
+    speed_m_s = property(lambda self: self.runs.speed_m_s)
+    views = property(lambda self: self.runs.views)
 
 
 def _lay_out(

@@ -28,33 +28,19 @@ def build_part(plan: SurveyPlan, layout: PlanLayout, pass_plans: list[PassPlan])
     """The mission of some lines of ``plan``, built (and fitted to the terrain) as the plan was."""
     spec = layout.spec
     built = build_mission(
-        spec=spec,
-        frame=plan.frame,
-        home=plan.home,
-        home_xy=plan.home_xy_m,
-        alt_agl_m=layout.alt_agl_m,
-        speed_m_s=layout.speed_m_s,
-        passes=pass_plans,
-        zones_xy=plan.exclusions_xy,
+        spec=spec, frame=plan.frame, home=plan.home, home_xy=plan.home_xy_m, alt_agl_m=layout.alt_agl_m,
+        speed_m_s=layout.speed_m_s, passes=pass_plans, zones_xy=plan.exclusions_xy,
         true_north_grid_deg=layout.true_north_grid_deg,
-    )
+    )  # fmt: skip
     if spec.terrain is not None and layout.dem is not None:
         from .terrain_follow import apply_terrain
 
         built, _, _ = apply_terrain(
-            built,
-            dem=layout.dem,
-            terrain=spec.terrain,
-            frame=plan.frame,
-            home=plan.home,
-            home_xy=plan.home_xy_m,
-            alt_agl_m=layout.alt_agl_m,
-            speed_m_s=layout.speed_m_s,
-            max_alt_agl_m=spec.vehicle.max_alt_agl_m,
-            passes=pass_plans,
-            camera=spec.camera,
+            built, dem=layout.dem, terrain=spec.terrain, frame=plan.frame, home=plan.home,
+            home_xy=plan.home_xy_m, alt_agl_m=layout.alt_agl_m, speed_m_s=layout.speed_m_s,
+            max_alt_agl_m=spec.vehicle.max_alt_agl_m, passes=pass_plans, camera=spec.camera,
             footprint_scale=layout.footprint_scale,
-        )
+        )  # fmt: skip
     return built
 
 

@@ -134,12 +134,10 @@ def plan_polygons(spec: MissionSpec, polygons: list[Polygon], exclusions: list[P
     return steps.finish_plan(
         spec,
         site,
+        laid,
         fit,
         home_xy,
         alt_agl_m=alt_agl_m,
-        speed_m_s=laid.speed_m_s,
-        pass_plans=pass_plans,
-        views=laid.views,
         flight_passes=passes,
         warnings=warnings,
         what="area",

@@ -239,18 +239,12 @@ def build(
 ) -> BuiltMission:
     """The mission and its stations for passes laid out in the site's frame (route, no-fly
     transits and a fixed-wing's turns: planner.mission_builder)."""
+    tng = site.true_north_grid_deg
     return build_mission(
-        spec=spec,
-        frame=site.frame,
-        home=home,
-        home_xy=home_xy,
-        alt_agl_m=alt_agl_m,
-        speed_m_s=speed_m_s,
-        passes=passes,
-        zones_xy=site.zones_xy,
-        true_north_grid_deg=site.true_north_grid_deg,
-        fixed_wing=fixed_wing_for(spec, speed_m_s, site.true_north_grid_deg),
-    )
+        spec=spec, frame=site.frame, home=home, home_xy=home_xy, alt_agl_m=alt_agl_m, speed_m_s=speed_m_s,
+        passes=passes, zones_xy=site.zones_xy, true_north_grid_deg=tng,
+        fixed_wing=fixed_wing_for(spec, speed_m_s, tng),
+    )  # fmt: skip
 
 
 def read_dem(spec: MissionSpec, area_lonlat: Polygon | MultiPolygon, home: HomePosition) -> Dem:
@@ -276,6 +270,9 @@ class Attempt(Protocol):
 
     @property
     def speed_m_s(self) -> float: ...
+
+    @property
+    def views(self) -> ViewShares: ...  # of the first pass (a corridor: of all its pieces)
 
 
 A = TypeVar("A", bound=Attempt)
@@ -361,13 +358,11 @@ def judge_terrain_overlaps(spec: MissionSpec, terrain: TerrainSummary, warnings:
 def finish_plan(
     spec: MissionSpec,
     site: ProjectedArea,
+    laid: Attempt,
     fit: TerrainFit,
     home_xy: tuple[float, float],
     *,
     alt_agl_m: float,
-    speed_m_s: float,
-    pass_plans: list[PassPlan],
-    views: ViewShares,
     flight_passes: tuple[FlightPass, ...],
     warnings: list[str],
     what: str,
@@ -378,7 +373,8 @@ def finish_plan(
     layout: PlanLayout | None = None,
     logger: logging.Logger = log,
 ) -> SurveyPlan:
-    """The plan from its built mission: the warnings every plan checks (the share of the
+    """The plan from its built mission (``laid``: its passes, speed and views; ``fit``: the
+    mission as built over the terrain): the warnings every plan checks (the share of the
     ``what`` seen by fewer than two of its first pass's ``frames``, by three against the forward
     overlap's target, the autopilot's item and flight-time limits), logged, the summary and the
     :class:`SurveyPlan`. ``stations_replaced``/``summary_replaced``: fields set on the built
@@ -386,7 +382,7 @@ def finish_plan(
     the warnings are logged under the planning module's name."""
     from .summary import limit_warnings, stereo_3_target_pct, summarize  # reads the whole plan
 
-    built = fit.built
+    built, views, pass_plans = fit.built, laid.views, laid.terrain_passes
     first = pass_plans[0]
     if views.seen_2_pct < 100.0 - 1e-9:
         warnings.append(
@@ -414,7 +410,7 @@ def finish_plan(
         )
     )
     summary = summarize(
-        spec=spec, frame=site.frame, area_m2=site.area_m2, alt_agl_m=alt_agl_m, speed_m_s=speed_m_s,
+        spec=spec, frame=site.frame, area_m2=site.area_m2, alt_agl_m=alt_agl_m, speed_m_s=laid.speed_m_s,
         nadir=first, passes=pass_plans, built=built, warnings=tuple(warnings),
         true_north_grid_deg=site.true_north_grid_deg, views=views,
         terrain=fit.terrain.as_dict() if fit.terrain is not None else None,
@@ -427,22 +423,10 @@ def finish_plan(
     for w in warnings:
         logger.warning(w)  # under the planning module's name
     return SurveyPlan(
-        name=spec.name,
-        camera=spec.camera,
-        orientation=spec.orientation,
-        frame=site.frame,
-        area_xy=site.area_xy,
-        area_lonlat=site.area_lonlat,
-        exclusions_xy=site.zones_xy,
-        exclusions_lonlat=site.zones_lonlat,
-        home=fit.home,
-        home_xy_m=home_xy,
-        passes=flight_passes,
-        stations=stations,
-        path_xy_m=built.path_xy_m,
-        path_lonlat_deg=built.path_lonlat_deg,
-        mission=built.mission,
-        summary=summary,
-        warnings=tuple(warnings),
-        layout=layout,
-    )
+        name=spec.name, camera=spec.camera, orientation=spec.orientation, frame=site.frame,
+        area_xy=site.area_xy, area_lonlat=site.area_lonlat,
+        exclusions_xy=site.zones_xy, exclusions_lonlat=site.zones_lonlat,
+        home=fit.home, home_xy_m=home_xy, passes=flight_passes, stations=stations,
+        path_xy_m=built.path_xy_m, path_lonlat_deg=built.path_lonlat_deg, mission=built.mission,
+        summary=summary, warnings=tuple(warnings), layout=layout,
+    )  # fmt: skip

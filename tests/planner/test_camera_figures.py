@@ -34,12 +34,9 @@ def test_figures_of_one_camera_follow_from_its_geometry() -> None:
 
 @settings(max_examples=60, deadline=None)
 @given(
-    width_mm=st.floats(2.0, 60.0),
-    aspect=st.floats(1.0, 2.0),
-    width_px=st.integers(800, 12000),
-    focal_mm=st.floats(3.0, 100.0),
-    height_m=st.floats(10.0, 500.0),
-)
+    width_mm=st.floats(2.0, 60.0), aspect=st.floats(1.0, 2.0), width_px=st.integers(800, 12000),
+    focal_mm=st.floats(3.0, 100.0), height_m=st.floats(10.0, 500.0),
+)  # fmt: skip
 def test_figures_follow_the_pinhole_geometry(
     width_mm: float, aspect: float, width_px: int, focal_mm: float, height_m: float
 ) -> None:

@@ -19,15 +19,15 @@ from planner.mission import Autopilot
 
 PX4_SPHERE = Geod(a=6_371_000.0, b=6_371_000.0)
 WGS84 = Geod(ellps="WGS84")
+#: A start anywhere a survey flies, a bearing, and a baseline of a trigger distance or a line.
+BASELINES = {
+    "lat": st.floats(-70.0, 70.0), "lon": st.floats(-179.0, 179.0), "bearing": st.floats(0.0, 360.0),
+    "distance_m": st.floats(1.0, 2000.0),
+}  # fmt: skip
 
 
 @settings(max_examples=80, deadline=None)
-@given(
-    lat=st.floats(-70.0, 70.0),
-    lon=st.floats(-179.0, 179.0),
-    bearing=st.floats(0.0, 360.0),
-    distance_m=st.floats(1.0, 2000.0),
-)
+@given(**BASELINES)
 def test_px4_measures_on_its_sphere(lat: float, lon: float, bearing: float, distance_m: float) -> None:
     lon1, lat1, _ = PX4_SPHERE.fwd(lon, lat, bearing, distance_m)
     measured = float(trig.autopilot_distance_m(lat, lon, lat1, lon1, Autopilot.PX4))
@@ -35,12 +35,7 @@ def test_px4_measures_on_its_sphere(lat: float, lon: float, bearing: float, dist
 
 
 @settings(max_examples=80, deadline=None)
-@given(
-    lat=st.floats(-70.0, 70.0),
-    lon=st.floats(-179.0, 179.0),
-    bearing=st.floats(0.0, 360.0),
-    distance_m=st.floats(5.0, 2000.0),
-)
+@given(**BASELINES)
 def test_ardupilot_measures_on_its_sphere_between_positions_in_1e7_degrees(
     lat: float, lon: float, bearing: float, distance_m: float
 ) -> None:
