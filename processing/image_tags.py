@@ -50,6 +50,7 @@ from planner.errors import CameraError
 if TYPE_CHECKING:
     from acquisition.exif import CameraTags, ImageTags
 
+
 class CameraConfidence(StrEnum):
     GIVEN = "given"  # the crew named the camera or gave its numbers
     DATASHEET = "datasheet"  # matched to the database
@@ -124,29 +125,37 @@ def _exif_camera(
     name = display_name(make, model)
     if focal_mm is not None and focal_plane_x_px_per_mm and focal_plane_y_px_per_mm:
         reduced = ""
+        scale = 1.0
         if original_width_px and original_width_px != width_px:
-            # Pixels of the original image per mm: fewer of the file's own.
-            focal_plane_x_px_per_mm *= width_px / original_width_px
-            focal_plane_y_px_per_mm *= width_px / original_width_px
+            # The resolution counts pixels of the original image: fewer of the file's own per mm.
+            scale = width_px / original_width_px
             reduced = f", image reduced from {original_width_px} px wide"
-        try:
-            camera = Camera(
-                id="exif",
-                name=f"{name} (from EXIF)",
-                sensor_width_mm=width_px / focal_plane_x_px_per_mm,
-                sensor_height_mm=height_px / focal_plane_y_px_per_mm,
-                image_width_px=width_px,
-                image_height_px=height_px,
-                focal_length_mm=focal_mm,
-                source=(
-                    f"EXIF of the images: FocalLength {focal_mm:g} mm, FocalPlaneX/YResolution "
-                    f"{focal_plane_x_px_per_mm:.1f}/{focal_plane_y_px_per_mm:.1f} px/mm"
-                ),
-                exif_make=make,
-                exif_model=model,
-            )
-        except CameraError:
-            camera = None
+        # The camera at the images' size; an image reduced so far that its pixels are larger
+        # than any sensor's stays the camera at its original size (the same field of view).
+        camera = None
+        for size_scale in (scale, 1.0) if scale != 1.0 else (1.0,):
+            px_mm_x, px_mm_y = focal_plane_x_px_per_mm * size_scale, focal_plane_y_px_per_mm * size_scale
+            w_px, h_px = round(width_px * size_scale / scale), round(height_px * size_scale / scale)
+            try:
+                camera = Camera(
+                    id="exif",
+                    name=f"{name} (from EXIF)",
+                    sensor_width_mm=w_px / px_mm_x,
+                    sensor_height_mm=h_px / px_mm_y,
+                    image_width_px=w_px,
+                    image_height_px=h_px,
+                    focal_length_mm=focal_mm,
+                    source=(
+                        f"EXIF of the images: FocalLength {focal_mm:g} mm, FocalPlaneX/YResolution "
+                        f"{px_mm_x:.1f}/{px_mm_y:.1f} px/mm"
+                    ),
+                    exif_make=make,
+                    exif_model=model,
+                )
+                break
+            except CameraError:
+                camera = None
+        focal_plane_x_px_per_mm *= scale
         if camera is not None:
             f_px = focal_mm * focal_plane_x_px_per_mm
             return CameraChoice(
