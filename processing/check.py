@@ -19,7 +19,7 @@ The area judged (``CheckResult.area_source`` says which):
    its notch look like a gap: give the area then.
 
 The check works in metres in a transverse Mercator frame centred on the frames
-(:func:`processing.inputs.local_frame_at`), where grid north is true north: the frames' yaw
+(:func:`processing.frames.local_frame_at`), where grid north is true north: the frames' yaw
 is a true bearing, and in a UTM zone (grid north up to 3 deg off) every footprint would turn
 about its camera and open false gaps along the area's edges.
 
@@ -48,9 +48,9 @@ from planner.geo import LocalFrame
 from .coverage import Grid
 from .errors import ProcessingError
 from .footprints import Footprints
-from .frames import AttitudeSource, Frames
+from .frames import AttitudeSource, Frames, frames_local_frame
 from .ground import Ground
-from .inputs import PlanInfo, frames_local_frame
+from .plan_frames import PlanInfo
 from .verdict import (
     DEFAULT_THRESHOLDS,
     LineSteps,
@@ -465,7 +465,7 @@ def run_check(
     camera_source: str = "",
 ) -> CheckResult:
     """Check ``frames`` over ``ground`` (same altitude reference; see
-    :func:`processing.inputs.ground_from_options`) and judge them against ``thresholds``.
+    :func:`processing.ground_choice.ground_from_options`) and judge them against ``thresholds``.
 
     ``area``: WGS84 polygon to judge (None: the plan's area, else the flown block; module
     docstring). ``plan``: the plan the frames were meant to follow (its overlaps are the

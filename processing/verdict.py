@@ -16,7 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .errors import ProcessingError
-from .inputs import PlanInfo
+from .plan_frames import PlanInfo
 
 if TYPE_CHECKING:
     # The result types live with the check that builds them; only their figures are read here.

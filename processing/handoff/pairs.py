@@ -80,7 +80,7 @@ def footprint_pairs(
     line_neighbours: int = DEFAULT_LINE_NEIGHBOURS,
 ) -> ImagePairs:
     """The pairs of ``block`` to match (module docstring). ``ground`` in the frames' altitude
-    reference (:func:`processing.inputs.ground_from_options`); None only when no image has a
+    reference (:func:`processing.ground_choice.ground_from_options`); None only when no image has a
     position."""
     n = len(block)
     found: dict[tuple[int, int], tuple[str, float]] = {}

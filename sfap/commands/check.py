@@ -9,20 +9,13 @@ import click
 
 from planner.area import build_area, load_polygons
 from planner.outputs import check_output_dir
+from planner.plan_folder import is_plan_folder
 from processing.check import CheckResult, Thresholds, run_check
 from processing.errors import ProcessingError
+from processing.ground_choice import GroundChoice, ground_for_plan, images_ground
+from processing.image_frames import image_paths, read_image_frames
 from processing.image_tags import camera_option
-from processing.inputs import (
-    GroundChoice,
-    PlanInfo,
-    frames_from_plan,
-    ground_for_plan,
-    image_paths,
-    images_ground,
-    is_plan_folder,
-    read_image_frames,
-    read_plan_info,
-)
+from processing.plan_frames import PlanInfo, frames_from_plan, read_plan_info
 
 from ..common import dumps_json, echo_table, json_option, overwrite_option, progress
 

@@ -23,8 +23,8 @@ from shared_data import SHARED_DATA
 
 from acquisition.simulator.flight import FlightSimulator
 from planner.errors import OutputExistsError
-from planner.plan_folder import write_outputs
 from planner.mission import Autopilot, VehicleType
+from planner.plan_folder import write_outputs
 from planner.spec import load_spec, parse_spec
 from planner.survey import plan_polygons, plan_survey
 from processing.check import (
@@ -38,9 +38,12 @@ from processing.check import (
 )
 from processing.errors import ProcessingError
 from processing.frames import AltitudeReference, Frames
-from processing.inputs import frames_from_plan, frames_from_track, ground_from_options, read_image_frames
+from processing.ground_choice import ground_from_options
+from processing.image_frames import read_image_frames
+from processing.plan_frames import frames_from_plan
 from processing.refly import refly_mission, refly_parameters
 from processing.report import REPORT_FILES, write_report
+from processing.track import frames_from_track
 from processing.verdict import judge
 
 GARFIELD = SHARED_DATA / "garfield_rgb"
@@ -118,7 +121,7 @@ def test_the_plan_passes_with_its_own_overlaps(gully_result: CheckResult) -> Non
     assert r.good_pair_pct is not None and r.good_pair_pct > 99.0
     assert (r.stereo_class[r.in_area] == STEREO_GOOD).mean() > 0.99
     # The plan's area in the local frame equals the one the planner measured.
-    assert r.area_m2 == pytest.approx(r.plan.summary["area_m2"], rel=0.01)  # type: ignore[union-attr]
+    assert r.area_m2 == pytest.approx(r.plan.planned.summary.area_m2, rel=0.01)  # type: ignore[union-attr]
 
 
 @pytest.fixture(scope="module")

@@ -28,13 +28,14 @@ from processing.check import run_check
 from processing.footprints import project_footprints, world_from_camera
 from processing.frames import AltitudeReference
 from processing.ground import FlatGround
+from processing.ground_choice import ground_from_options
+from processing.image_frames import read_image_frames
 from processing.image_tags import (
     FULL_FRAME_DIAGONAL_MM,
     CameraConfidence,
     display_name,
     pix4d_from_dji_gimbal,
 )
-from processing.inputs import ground_from_options, read_image_frames
 from sfap.cli import cli
 
 GARFIELD = SHARED_DATA / "garfield_rgb"

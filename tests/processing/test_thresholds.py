@@ -16,7 +16,7 @@ import pytest
 import shapely
 
 from processing.check import Distribution, Gap, exact_gaps
-from processing.inputs import PLACEHOLDER_DEG, _position
+from processing.image_frames import PLACEHOLDER_DEG, _position
 from processing.stereo import Pairs, scale_outliers
 from processing.survey_frames import (
     ALTITUDE_DRIFT_M,
