@@ -46,6 +46,7 @@ from planner.camera import Orientation
 from planner.geo import LocalFrame
 
 from .coverage import Grid
+from .distribution import Distribution
 from .errors import ProcessingError
 from .footprints import Footprints
 from .frames import AttitudeSource, Frames, frames_local_frame
@@ -69,37 +70,6 @@ PLAN_HEIGHT_TOLERANCE_M = 10.0
 VIEW_LEVELS = (1, 2, 3, 5, 9)
 #: Codes of :attr:`CheckResult.stereo_class`.
 STEREO_NONE, STEREO_WEAK, STEREO_GOOD, STEREO_WIDE = -1, 0, 1, 2
-
-
-@dataclass(frozen=True, kw_only=True)
-class Distribution:
-    """Summary of a set of values, in the unit the owning field names."""
-
-    count: int
-    min: float
-    p10: float
-    median: float
-    p90: float
-    max: float
-
-    @classmethod
-    def of(cls, values: NDArray[np.float64] | Sequence[float]) -> Distribution | None:
-        v = np.asarray(values, dtype=np.float64)
-        v = v[np.isfinite(v)]
-        if v.size == 0:
-            return None
-        p10, median, p90 = np.percentile(v, [10, 50, 90])
-        return cls(
-            count=int(v.size),
-            min=float(v.min()),
-            p10=float(p10),
-            median=float(median),
-            p90=float(p90),
-            max=float(v.max()),
-        )
-
-    def as_dict(self) -> dict[str, float | int]:
-        return {k: getattr(self, k) for k in self.__dataclass_fields__}
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -41,10 +41,11 @@ from shapely.geometry import Polygon, mapping
 from shapely.geometry.polygon import orient
 
 from planner.mapplot import polygon_path, scale_bar_length_m
-from planner.outputs import atomic_write_bytes, atomic_write_text, staged_output_dir
+from planner.outputs import atomic_write_bytes, atomic_write_text, json_safe, staged_output_dir
 from planner.plan import SurveyPlan
 
-from .check import STEREO_GOOD, STEREO_NONE, STEREO_WEAK, STEREO_WIDE, CheckResult, Distribution
+from .check import STEREO_GOOD, STEREO_NONE, STEREO_WEAK, STEREO_WIDE, CheckResult
+from .distribution import Distribution
 
 log = logging.getLogger(__name__)
 
@@ -393,24 +394,9 @@ def footprints_geojson(result: CheckResult) -> str:
     return _feature_collection("footprints", features)
 
 
-def _json_clean(value: Any) -> Any:
-    """JSON has no NaN: None instead; numpy scalars and arrays as Python values."""
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if isinstance(value, dict):
-        return {str(k): _json_clean(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_json_clean(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return _json_clean(value.tolist())
-    if isinstance(value, np.generic):
-        return _json_clean(value.item())
-    return value
-
-
 def report_json(result: CheckResult) -> str:
     """report.json: :meth:`CheckResult.as_dict` with NaN as null."""
-    return json.dumps(_json_clean(result.as_dict()), indent=2, allow_nan=False) + "\n"
+    return json.dumps(json_safe(result.as_dict()), indent=2, allow_nan=False) + "\n"
 
 
 # --- the page ------------------------------------------------------------------------------------

@@ -38,6 +38,7 @@ from numpy.typing import NDArray
 from planner.geo import LocalFrame
 
 from .coverage import Grid, count_raster, min_value_raster
+from .distribution import Distribution
 from .errors import ProcessingError
 from .footprints import Footprints
 from .frames import Frames
@@ -56,28 +57,6 @@ LINE_BREAK_TURN_DEG = 30.0
 LINE_BREAK_JUMP_RATIO = 3.0
 #: A line whose nearest frame is within this factor of the nearest other line's is a neighbour.
 NEIGHBOUR_LINE_RATIO = 1.5
-
-
-@dataclass(frozen=True, kw_only=True)
-class Distribution:
-    """Median and 5th / 95th percentiles of a set of values, and how many there were."""
-
-    median: float
-    p5: float
-    p95: float
-    count: int
-
-    @classmethod
-    def of(cls, values: F64) -> Distribution | None:
-        """None when there are no values (nothing to measure)."""
-        v = np.asarray(values, float)
-        if v.size == 0:
-            return None
-        p5, median, p95 = np.percentile(v, [5.0, 50.0, 95.0])
-        return cls(median=float(median), p5=float(p5), p95=float(p95), count=int(v.size))
-
-    def as_dict(self) -> dict[str, float | int]:
-        return {"median": self.median, "p5": self.p5, "p95": self.p95, "count": self.count}
 
 
 @dataclass(frozen=True, kw_only=True)

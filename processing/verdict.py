@@ -20,7 +20,8 @@ from .plan_frames import PlanInfo
 
 if TYPE_CHECKING:
     # The result types live with the check that builds them; only their figures are read here.
-    from .check import Distribution, Gap
+    from .check import Gap
+    from .distribution import Distribution
 
 
 @dataclass(frozen=True, kw_only=True)
