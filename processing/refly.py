@@ -32,7 +32,7 @@ from planner.survey import plan_polygons
 from .errors import ProcessingError
 
 if TYPE_CHECKING:
-    from .check import CheckResult
+    from .check_result import CheckResult
 
 log = logging.getLogger(__name__)
 

@@ -44,7 +44,7 @@ from planner.mapplot import polygon_path, scale_bar_length_m
 from planner.outputs import atomic_write_bytes, atomic_write_text, json_safe, staged_output_dir
 from planner.plan import SurveyPlan
 
-from .check import STEREO_GOOD, STEREO_NONE, STEREO_WEAK, STEREO_WIDE, CheckResult
+from .check_result import STEREO_GOOD, STEREO_NONE, STEREO_WEAK, STEREO_WIDE, CheckResult
 from .distribution import Distribution
 
 log = logging.getLogger(__name__)

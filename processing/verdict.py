@@ -20,7 +20,7 @@ from .plan_frames import PlanInfo
 
 if TYPE_CHECKING:
     # The result types live with the check that builds them; only their figures are read here.
-    from .check import Gap
+    from .check_result import Gap
     from .distribution import Distribution
 
 

@@ -10,12 +10,14 @@ import click
 from planner.area import build_area, load_polygons
 from planner.outputs import check_output_dir
 from planner.plan_folder import is_plan_folder
-from processing.check import CheckResult, Thresholds, run_check
+from processing.check import run_check
+from processing.check_result import CheckResult
 from processing.errors import ProcessingError
 from processing.ground_choice import GroundChoice, ground_for_plan, images_ground
 from processing.image_frames import image_paths, read_image_frames
 from processing.image_tags import camera_option
 from processing.plan_frames import PlanInfo, frames_from_plan, read_plan_info
+from processing.verdict import Thresholds
 
 from ..common import dumps_json, echo_table, json_option, overwrite_option, progress
 
@@ -136,7 +138,7 @@ def command(
     overwrite: bool,
     as_json: bool,
     no_progress: bool,
-) -> None:
+) -> CheckResult:
     """Check the frames in IMAGES_OR_PLAN (a folder of geotagged images, or a plan folder
     written by `sfap plan` to check the plan itself) before leaving the field: views per
     ground cell, gaps, forward and side overlap, base-height ratios, GSD, motion blur.
@@ -238,8 +240,7 @@ def command(
 
         write_report(result, out_dir, overwrite=overwrite, refly=refly_plan)
     _present(result, out_dir, refly, refly_plan is not None, as_json)
-    if not result.passed:
-        click.get_current_context().exit(result.exit_code)
+    return result  # sfap.cli exits 1 when it did not pass
 
 
 def _present(

@@ -15,7 +15,8 @@ import numpy as np
 import pytest
 import shapely
 
-from processing.check import Gap, exact_gaps
+from processing.check import exact_gaps
+from processing.check_result import Gap
 from processing.distribution import Distribution
 from processing.image_frames import PLACEHOLDER_DEG, _position
 from processing.stereo import Pairs, scale_outliers
