@@ -47,8 +47,8 @@ from shapely.geometry import MultiPolygon, Polygon
 from planner.camera import Orientation
 from planner.geo import LocalFrame
 
-from .check_result import CheckResult, FrameFlag, Gap
-from .check_stereo import StereoFigures, measure_stereo
+from .check_result import CheckResult, Gap
+from .check_stereo import FrameFlag, StereoFigures, measure_stereo
 from .coverage import Grid, ViewCount
 from .distribution import Distribution
 from .errors import ProcessingError
@@ -175,9 +175,9 @@ def choose_area(area: Polygon | MultiPolygon | None, plan: PlanInfo | None, proj
     if area is not None:
         area_lonlat = area
         source = "the area given"
-    elif plan is not None and plan.area_lonlat is not None:
-        area_lonlat = plan.area_lonlat
-        source = f"the plan's area ({plan.folder.name}/area.geojson)"
+    elif plan is not None and plan.planned.area_lonlat is not None:
+        area_lonlat = plan.planned.area_lonlat
+        source = f"the plan's area ({plan.planned.folder.name}/area.geojson)"
     else:
         area_lonlat = None
         source = (
@@ -318,21 +318,23 @@ def block_warnings(
             "risks the doming effect (James and Robson 2014); add oblique frames or a crosshatch pass"
         )
     if plan is not None:
+        planned = plan.planned.summary
         gsd = Distribution.of(projection.footprints.gsd_cm[projection.valid])
-        if gsd is not None and gsd.median > 1.1 * plan.gsd_cm:
+        if gsd is not None and gsd.median > 1.1 * planned.gsd_cm:
             out.append(
                 f"median GSD {gsd.median:.2f} cm is more than 10 % coarser than the planned "
-                f"{plan.gsd_cm:.2f} cm: flown higher than planned?"
+                f"{planned.gsd_cm:.2f} cm: flown higher than planned?"
             )
-        if frames.alt_reference.value in ("amsl", "ellipsoid") and plan.altitude_agl_m > 0:
-            off = median_height - plan.altitude_agl_m
-            if abs(off) > max(PLAN_HEIGHT_TOLERANCE_M, 0.1 * plan.altitude_agl_m):
+        if frames.alt_reference.value in ("amsl", "ellipsoid") and planned.altitude_agl_m > 0:
+            off = median_height - planned.altitude_agl_m
+            if abs(off) > max(PLAN_HEIGHT_TOLERANCE_M, 0.1 * planned.altitude_agl_m):
                 out.append(
                     f"the frames are {abs(off):.0f} m {'higher' if off > 0 else 'lower'} above the ground "
-                    f"(median {median_height:.1f} m) than the plan's {plan.altitude_agl_m:.1f} m: flown so, "
+                    f"(median {median_height:.1f} m) than the plan's {planned.altitude_agl_m:.1f} m: "
+                    "flown so, "
                     "or the camera altitudes are not above mean sea level (an ellipsoidal height is tens of "
                     "metres off it in most places) or the ground elevation is wrong; heights, GSD and B/H "
-                    f"reported scale with it ({100 * off / plan.altitude_agl_m:+.0f} %)"
+                    f"reported scale with it ({100 * off / planned.altitude_agl_m:+.0f} %)"
                 )
     return out
 
@@ -446,20 +448,7 @@ def run_check(
         height_agl_m=fp.height_above_ground_m,
         gsd_cm=fp.gsd_cm,
         gsd_cm_raster=coverage.gsd_cm_raster,
-        forward_overlap_pct=stereo.forward_overlap_pct,
-        side_overlap_pct=stereo.side_overlap_pct,
-        pair_index=stereo.pair_index,
-        pair_base_height_ratio=stereo.pair_base_height_ratio,
-        pair_intersection_deg=stereo.pair_intersection_deg,
-        pair_along_line=stereo.pair_along_line,
-        pair_across_lines=stereo.pair_across_lines,
-        good_pair_pct=stereo.good_pair_pct,
-        good_pair_basis=stereo.good_pair_basis,
-        stereo_class=stereo.stereo_class,
-        convergent_pct=stereo.convergent_pct,
-        doming_risk=stereo.doming_risk,
-        speed_m_s=stereo.speed_m_s,
-        blur_px=stereo.blur_px,
+        stereo=stereo,
         flagged=flagged,
         plan=plan,
         unpositioned=tuple(unpositioned),

@@ -12,13 +12,11 @@ from shapely.geometry import MultiPolygon, Polygon
 
 from planner.geo import LocalFrame
 
+from .check_stereo import FrameFlag, StereoFigures
 from .distribution import Distribution
 from .frames import Frames
 from .plan_frames import PlanInfo
 from .verdict import Thresholds
-
-#: Codes of :attr:`CheckResult.stereo_class`.
-STEREO_NONE, STEREO_WEAK, STEREO_GOOD, STEREO_WIDE = -1, 0, 1, 2
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -38,25 +36,15 @@ class Gap:
 
 
 @dataclass(frozen=True, kw_only=True)
-class FrameFlag:
-    """A frame the report points out, and why (``kind``: blur, scale, low, ...)."""
-
-    name: str
-    kind: str
-    detail: str
-
-
-@dataclass(frozen=True, kw_only=True)
 class CheckResult:
     """Everything a check measured, and the verdict. ``as_dict`` is report.json.
 
     Rasters share ``grid`` (rows from north, ``extent_xy_m`` = (west, south, east, north) in
     ``frame``'s metres): ``view_count`` (views per cell), ``in_area`` (cell centre inside the
     area), ``gsd_cm_raster`` (finest GSD that sees each cell, NaN where none does),
-    ``stereo_class`` (the best pair that sees the cell: :data:`STEREO_GOOD` a B/H in the
-    thresholds' range, else :data:`STEREO_WIDE` above it, else :data:`STEREO_WEAK` below it,
-    :data:`STEREO_NONE` no pair).
-    Per-frame arrays follow ``frames``' rows.
+    ``stereo.stereo_class`` (:class:`~processing.check_stereo.StereoFigures`).
+    Per-frame arrays follow ``frames``' rows; ``stereo``: pairs, overlaps, B/H, convergence,
+    speed and blur (:func:`processing.check_stereo.measure_stereo`).
     """
 
     passed: bool
@@ -84,40 +72,23 @@ class CheckResult:
     height_agl_m: NDArray[np.float64]
     gsd_cm: NDArray[np.float64]
     gsd_cm_raster: NDArray[np.float64] | None
-    forward_overlap_pct: Distribution | None
-    side_overlap_pct: Distribution | None
-    pair_index: NDArray[np.int64]  # (M, 2) frame rows of the overlapping pairs
-    pair_base_height_ratio: NDArray[np.float64]
-    pair_intersection_deg: NDArray[np.float64]
-    good_pair_pct: float | None
-    stereo_class: NDArray[np.int8]
-    convergent_pct: float
-    doming_risk: bool
-    speed_m_s: NDArray[np.float64] | None
-    blur_px: NDArray[np.float64] | None
+    stereo: StereoFigures
     flagged: tuple[FrameFlag, ...]
     plan: PlanInfo | None = None
-    pair_along_line: NDArray[np.bool_] | None = None
-    pair_across_lines: NDArray[np.bool_] | None = None
     unpositioned: tuple[str, ...] = ()
     left_out: tuple[tuple[str, str], ...] = ()
     camera_source: str = ""
-    good_pair_basis: str = "frames on one line or neighbouring lines"
     stats: dict[str, Any] = field(default_factory=dict)
 
     @property
     def base_height_along_line(self) -> Distribution | None:
         """B/H of consecutive frames of a line (the forward-overlap pairs)."""
-        if self.pair_along_line is None:
-            return None
-        return Distribution.of(self.pair_base_height_ratio[self.pair_along_line])
+        return Distribution.of(self.stereo.pair_base_height_ratio[self.stereo.pair_along_line])
 
     @property
     def base_height_across_lines(self) -> Distribution | None:
         """B/H of pairs of frames on different lines (the side-overlap pairs)."""
-        if self.pair_across_lines is None:
-            return None
-        return Distribution.of(self.pair_base_height_ratio[self.pair_across_lines])
+        return Distribution.of(self.stereo.pair_base_height_ratio[self.stereo.pair_across_lines])
 
     @property
     def gap_area_m2(self) -> float:
@@ -141,8 +112,16 @@ class CheckResult:
         ]
         plan = self.plan
         for label, dist, planned in (
-            ("forward overlap", self.forward_overlap_pct, plan.front_overlap_pct if plan else None),
-            ("side overlap", self.side_overlap_pct, plan.side_overlap_pct if plan else None),
+            (
+                "forward overlap",
+                self.stereo.forward_overlap_pct,
+                plan.planned.summary.front_overlap_pct if plan else None,
+            ),
+            (
+                "side overlap",
+                self.stereo.side_overlap_pct,
+                plan.planned.summary.side_overlap_pct if plan else None,
+            ),
         ):
             if dist is None:
                 rows.append((label, "not measured (no consecutive frames along a line)"))
@@ -160,11 +139,12 @@ class CheckResult:
             else:
                 text = f"median {dist.median:.2f} (10-90 %: {dist.p10:.2f}-{dist.p90:.2f})"
                 rows.append((label, f"{text} over {dist.count} pairs"))
-        if self.good_pair_pct is not None:
+        if self.stereo.good_pair_pct is not None:
             rows.append(
                 (
                     "stereo",
-                    f"{self.good_pair_pct:.1f} % of the area has a pair ({self.good_pair_basis}) with B/H in "
+                    f"{self.stereo.good_pair_pct:.1f} % of the area has a pair "
+                    f"({self.stereo.good_pair_basis}) with B/H in "
                     f"{self.thresholds.min_base_height_ratio:g}-{self.thresholds.max_base_height_ratio:g}",
                 )
             )
@@ -174,24 +154,24 @@ class CheckResult:
         h = Distribution.of(self.height_agl_m)
         if h is not None:
             rows.append(("height above ground", f"median {h.median:.1f} m ({h.min:.1f}-{h.max:.1f} m)"))
-        speed = Distribution.of(self.speed_m_s) if self.speed_m_s is not None else None
-        if self.speed_m_s is None:
+        speed = Distribution.of(self.stereo.speed_m_s) if self.stereo.speed_m_s is not None else None
+        if self.stereo.speed_m_s is None:
             rows.append(("ground speed", "not measured (no capture times)"))
         elif speed is None:
             rows.append(("ground speed", "unknown (no two frames of a line close enough in time)"))
         else:
-            unknown = int(np.isnan(self.speed_m_s).sum())
+            unknown = int(np.isnan(self.stereo.speed_m_s).sum())
             text = f"median {speed.median:.1f} m/s ({speed.min:.1f}-{speed.max:.1f} m/s)"
             rows.append(("ground speed", text + (f", unknown for {unknown} frames" if unknown else "")))
-        blur = Distribution.of(self.blur_px) if self.blur_px is not None else None
-        if self.speed_m_s is None:
+        blur = Distribution.of(self.stereo.blur_px) if self.stereo.blur_px is not None else None
+        if self.stereo.speed_m_s is None:
             rows.append(("motion blur", "not computed (no capture times)"))
-        elif self.blur_px is None:
+        elif self.stereo.blur_px is None:
             rows.append(("motion blur", "not computed (no exposure time in the images or the camera)"))
         elif blur is None:
             rows.append(("motion blur", "blur not computed for any frame (speed or exposure unknown)"))
         else:
-            unknown_blur = int(np.isnan(self.blur_px).sum())
+            unknown_blur = int(np.isnan(self.stereo.blur_px).sum())
             text = f"median {blur.median:.2f} px, max {blur.max:.2f} px (where worst in each frame)"
             if unknown_blur:
                 text += f"; blur not computed for {unknown_blur} frames (speed or exposure unknown)"
@@ -199,7 +179,7 @@ class CheckResult:
         rows.append(
             (
                 "convergent frames",
-                f"{self.convergent_pct:.0f} %" + (" (doming risk)" if self.doming_risk else ""),
+                f"{self.stereo.convergent_pct:.0f} %" + (" (doming risk)" if self.stereo.doming_risk else ""),
             )
         )
         return rows
@@ -221,13 +201,13 @@ class CheckResult:
                 "roll_deg": float(frames.roll_deg[k]),
                 "gsd_cm": float(self.gsd_cm[k]),
             }
-            if self.speed_m_s is not None:
-                row["speed_m_s"] = float(self.speed_m_s[k])
-            if self.blur_px is not None:
-                row["blur_px"] = float(self.blur_px[k])
+            if self.stereo.speed_m_s is not None:
+                row["speed_m_s"] = float(self.stereo.speed_m_s[k])
+            if self.stereo.blur_px is not None:
+                row["blur_px"] = float(self.stereo.blur_px[k])
             per_frame.append(row)
-        bh = Distribution.of(self.pair_base_height_ratio)
-        angle = Distribution.of(self.pair_intersection_deg)
+        bh = Distribution.of(self.stereo.pair_base_height_ratio)
+        angle = Distribution.of(self.stereo.pair_intersection_deg)
         return {
             "verdict": "pass" if self.passed else "fail",
             "passed": self.passed,
@@ -269,13 +249,15 @@ class CheckResult:
                 ],
             },
             "overlap": {
-                "forward_pct": self.forward_overlap_pct.as_dict() if self.forward_overlap_pct else None,
-                "side_pct": self.side_overlap_pct.as_dict() if self.side_overlap_pct else None,
-                "plan_front_overlap_pct": plan.front_overlap_pct if plan else None,
-                "plan_side_overlap_pct": plan.side_overlap_pct if plan else None,
+                "forward_pct": self.stereo.forward_overlap_pct.as_dict()
+                if self.stereo.forward_overlap_pct
+                else None,
+                "side_pct": self.stereo.side_overlap_pct.as_dict() if self.stereo.side_overlap_pct else None,
+                "plan_front_overlap_pct": plan.planned.summary.front_overlap_pct if plan else None,
+                "plan_side_overlap_pct": plan.planned.summary.side_overlap_pct if plan else None,
             },
             "stereo": {
-                "pair_count": int(self.pair_index.shape[0]),
+                "pair_count": int(self.stereo.pair_index.shape[0]),
                 "base_height_ratio": bh.as_dict() if bh else None,
                 "base_height_ratio_along_line": (
                     d.as_dict() if (d := self.base_height_along_line) is not None else None
@@ -284,29 +266,33 @@ class CheckResult:
                     d.as_dict() if (d := self.base_height_across_lines) is not None else None
                 ),
                 "intersection_angle_deg": angle.as_dict() if angle else None,
-                "good_pair_area_pct": self.good_pair_pct,
-                "good_pair_basis": self.good_pair_basis,
-                "convergent_frames_pct": self.convergent_pct,
-                "doming_risk": self.doming_risk,
+                "good_pair_area_pct": self.stereo.good_pair_pct,
+                "good_pair_basis": self.stereo.good_pair_basis,
+                "convergent_frames_pct": self.stereo.convergent_pct,
+                "doming_risk": self.stereo.doming_risk,
             },
             "gsd_cm": (d.as_dict() if (d := Distribution.of(self.gsd_cm)) else None),
             "height_agl_m": (d.as_dict() if (d := Distribution.of(self.height_agl_m)) else None),
             "speed_m_s": (
-                d.as_dict() if self.speed_m_s is not None and (d := Distribution.of(self.speed_m_s)) else None
+                d.as_dict()
+                if self.stereo.speed_m_s is not None and (d := Distribution.of(self.stereo.speed_m_s))
+                else None
             ),
             "blur_px": (
-                d.as_dict() if self.blur_px is not None and (d := Distribution.of(self.blur_px)) else None
+                d.as_dict()
+                if self.stereo.blur_px is not None and (d := Distribution.of(self.stereo.blur_px))
+                else None
             ),
             "flagged_frames": [{"name": f.name, "kind": f.kind, "detail": f.detail} for f in self.flagged],
             "plan": (
                 {
-                    "folder": str(plan.folder),
-                    "name": plan.name,
+                    "folder": str(plan.planned.folder),
+                    "name": plan.planned.name,
                     "camera_id": plan.camera.id,
-                    "altitude_agl_m": plan.altitude_agl_m,
-                    "gsd_cm": plan.gsd_cm,
-                    "front_overlap_pct": plan.front_overlap_pct,
-                    "side_overlap_pct": plan.side_overlap_pct,
+                    "altitude_agl_m": plan.planned.summary.altitude_agl_m,
+                    "gsd_cm": plan.planned.summary.gsd_cm,
+                    "front_overlap_pct": plan.planned.summary.front_overlap_pct,
+                    "side_overlap_pct": plan.planned.summary.side_overlap_pct,
                 }
                 if plan
                 else None

@@ -11,7 +11,6 @@ from numpy.typing import NDArray
 
 from planner.geo import LocalFrame
 
-from .check_result import STEREO_GOOD, STEREO_NONE, STEREO_WEAK, STEREO_WIDE, FrameFlag
 from .coverage import Grid
 from .distribution import Distribution
 from .footprints import Footprints
@@ -19,10 +18,30 @@ from .frames import Frames
 from .ground import Ground
 from .verdict import LineSteps, Thresholds, above, good_base_height
 
+#: Codes of :attr:`StereoFigures.stereo_class`: the best pair that sees a cell has a B/H in the
+#: thresholds' range (GOOD), else above it (WIDE), else below it (WEAK); NONE: no pair.
+STEREO_NONE, STEREO_WEAK, STEREO_GOOD, STEREO_WIDE = -1, 0, 1, 2
+
+
+@dataclass(frozen=True, kw_only=True)
+class FrameFlag:
+    """A frame the report points out, and why (``kind``: blur, scale, low, ...)."""
+
+    name: str
+    kind: str
+    detail: str
+
 
 @dataclass(frozen=True, kw_only=True)
 class StereoFigures:
-    """What :func:`measure_stereo` finds; the check copies it into its result."""
+    """What :func:`measure_stereo` finds (the check's result holds it as ``stereo``).
+
+    ``pair_index``: (M, 2) frame rows of the overlapping pairs, with their B/H and intersection
+    angles; ``pair_along_line`` / ``pair_across_lines``: which pairs are two frames of one line
+    and which a frame with the nearest of a neighbouring line; ``stereo_class``: per cell of the
+    check's grid, :data:`STEREO_GOOD`... ; ``speed_m_s`` / ``blur_px``: per frame, None without
+    capture times (or exposure times).
+    """
 
     forward_overlap_pct: Distribution | None
     side_overlap_pct: Distribution | None
@@ -56,18 +75,9 @@ def measure_stereo(
 ) -> StereoFigures:
     """Pairs, overlaps, convergence, scale and blur through :mod:`processing.stereo`."""
     from .coverage import count_raster
-    from .stereo import (
-        CONVERGENT_OFF_NADIR_DEG,
-        SPEED_MAX_INTERVAL_RATIO,
-        flight_lines,
-        forward_overlaps_pct,
-        motion_blur,
-        off_nadir_deg,
-        overlapping_pairs,
-        pair_kinds,
-        scale_outliers,
-        side_overlaps_pct,
-    )
+    from .flight_lines import flight_lines, forward_overlaps_pct, pair_kinds, side_overlaps_pct
+    from .motion_blur import SPEED_MAX_INTERVAL_RATIO, motion_blur
+    from .stereo import CONVERGENT_OFF_NADIR_DEG, off_nadir_deg, overlapping_pairs, scale_outliers
 
     pairs = overlapping_pairs(fp, ground, frame)
     lines = flight_lines(frames, fp)

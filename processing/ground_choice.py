@@ -154,7 +154,7 @@ def plan_dem_path(info: PlanInfo) -> Path | None:
     if terrain is None or not terrain.dem:
         return None
     recorded = Path(terrain.dem)
-    for candidate in (info.folder / recorded.name, info.folder / recorded, recorded):
+    for candidate in (info.planned.folder / recorded.name, info.planned.folder / recorded, recorded):
         if candidate.is_file():
             return candidate
     return None
@@ -212,7 +212,7 @@ def ground_for_plan(
     agl = info.planned.stations.alt_agl_m
     if agl is None:
         raise GroundError(
-            f"{info.folder} is a terrain plan made on DEM {terrain.dem!r}, which is not in the plan "
+            f"{info.planned.folder} is a terrain plan made on DEM {terrain.dem!r}, which is not in the plan "
             "folder or at that path, and its stations carry no height above ground; give the DEM "
             "(--dem FILE.tif)"
         )
@@ -257,9 +257,10 @@ def _dem_elevation_at_home(dem: Path, info: PlanInfo) -> float | None:
     ground. None when the plan records no home or the DEM does not cover it."""
     from .ground import DemGround
 
-    if info.home_lon_deg is None or info.home_lat_deg is None:
+    home = info.planned.home
+    if home is None:
         return None
-    frame = local_frame_at(info.home_lon_deg, info.home_lat_deg)
+    frame = local_frame_at(home.lon_deg, home.lat_deg)
     ground = DemGround.from_geotiff(dem, reference=AltitudeReference.AMSL)
     try:
         return float(np.asarray(ground.elevation_at(np.array([0.0]), np.array([0.0]), frame))[0])

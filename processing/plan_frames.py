@@ -9,10 +9,8 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
-from shapely.geometry import MultiPolygon, Polygon
 
 from planner.camera import Camera, Orientation
 from planner.camera_db import get_camera
@@ -25,64 +23,11 @@ from .frames import AltitudeReference, AttitudeSource, Frames
 
 @dataclass(frozen=True, kw_only=True)
 class PlanInfo:
-    """What a check needs from a plan folder: the folder as read (``planned``) and the camera
-    it was planned for. Overlaps in percent, altitudes above ground (``altitude_agl_m``) or
-    home, areas in WGS84 lon/lat."""
+    """What a check needs from a plan folder: the folder as read (``planned``: its summary,
+    home, stations, area and terrain) and the camera it was planned for."""
 
     planned: PlanFolder
     camera: Camera
-
-    @property
-    def folder(self) -> Path:
-        return self.planned.folder
-
-    @property
-    def name(self) -> str:
-        return self.planned.name
-
-    @property
-    def orientation(self) -> Orientation:
-        return self.planned.orientation
-
-    @property
-    def front_overlap_pct(self) -> float:
-        return self.planned.summary.front_overlap_pct
-
-    @property
-    def side_overlap_pct(self) -> float:
-        return self.planned.summary.side_overlap_pct
-
-    @property
-    def altitude_agl_m(self) -> float:
-        return self.planned.summary.altitude_agl_m
-
-    @property
-    def gsd_cm(self) -> float:
-        return self.planned.summary.gsd_cm
-
-    @property
-    def speed_m_s(self) -> float:
-        return self.planned.summary.speed_m_s
-
-    @property
-    def home_lat_deg(self) -> float | None:
-        return None if self.planned.home is None else self.planned.home.lat_deg
-
-    @property
-    def home_lon_deg(self) -> float | None:
-        return None if self.planned.home is None else self.planned.home.lon_deg
-
-    @property
-    def home_alt_amsl_m(self) -> float | None:
-        return None if self.planned.home is None else self.planned.home.alt_amsl_m
-
-    @property
-    def area_lonlat(self) -> Polygon | MultiPolygon | None:
-        return self.planned.area_lonlat
-
-    @property
-    def exclusions_lonlat(self) -> tuple[Polygon, ...]:
-        return self.planned.exclusions_lonlat
 
 
 def read_plan_info(plan_dir: str | os.PathLike[str], *, camera: Camera | None = None) -> PlanInfo:
@@ -118,8 +63,10 @@ def frames_from_plan(
     info = read_plan_info(plan_dir, camera=camera)
     st = info.planned.stations
     if len(st) == 0:
-        raise FramesError(f"{info.folder / STATIONS_FILE} holds no station; the plan has no photo to check")
-    landscape = info.orientation is Orientation.LANDSCAPE
+        raise FramesError(
+            f"{info.planned.folder / STATIONS_FILE} holds no station; the plan has no photo to check"
+        )
+    landscape = info.planned.orientation is Orientation.LANDSCAPE
     nadir_up = st.heading_deg % 360.0 if landscape else (st.heading_deg - 90.0) % 360.0
     yaw = np.where(st.tilt_deg > 0.0, st.look_heading_deg % 360.0, nadir_up)
     line_ids: dict[tuple[int, int], int] = {}

@@ -304,8 +304,8 @@ def judge(
         )
     if plan is not None:
         for what, dist, planned in (
-            ("forward", forward_overlap_pct, plan.front_overlap_pct),
-            ("side", side_overlap_pct, plan.side_overlap_pct),
+            ("forward", forward_overlap_pct, plan.planned.summary.front_overlap_pct),
+            ("side", side_overlap_pct, plan.planned.summary.side_overlap_pct),
         ):
             if dist is not None and dist.median < planned - t.max_overlap_shortfall_pct:
                 reasons.append(

@@ -19,9 +19,10 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from ..flight_lines import capture_order, flight_lines
 from ..footprints import Footprints, project_footprints
 from ..ground import Ground
-from ..stereo import capture_order, flight_lines, overlapping_pairs
+from ..stereo import overlapping_pairs
 from .block import Block
 
 #: Default smallest footprint overlap of a pair, percent of the smaller footprint.

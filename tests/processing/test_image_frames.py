@@ -16,7 +16,7 @@ from acquisition.exif import GeoTag, read_tags, strip_gps, write_geotag
 from planner.camera_db import get_camera
 from processing.errors import FramesError
 from processing.frames import AltitudeReference, AttitudeSource
-from processing.image_frames import frames_from_images, read_image_frames
+from processing.image_frames import PLACEHOLDER_DEG, _position, frames_from_images, read_image_frames
 
 GARFIELD = SHARED_DATA / "garfield_rgb"
 
@@ -102,3 +102,20 @@ def test_without_xmp_attitude_frames_are_nadir_along_the_track(tmp_path: Path) -
     g = Geodesic.WGS84.Inverse(frames.lat_deg[0], frames.lon_deg[0], frames.lat_deg[2], frames.lon_deg[2])
     assert frames.yaw_deg[1] == pytest.approx(g["azi1"] % 360.0, abs=1e-6)
     assert frames.yaw_deg[1] < 5.0 or frames.yaw_deg[1] > 355.0  # the line runs north
+
+
+# --- thresholds at their boundaries (exactly at, just below, just above) ---
+
+
+@pytest.mark.parametrize(
+    ("offset", "placeholder"),
+    [(PLACEHOLDER_DEG * 0.999, True), (PLACEHOLDER_DEG, False), (PLACEHOLDER_DEG * 1.001, False)],
+)
+def test_placeholder_position(offset: float, placeholder: bool) -> None:
+    from acquisition.exif import ImageTags
+
+    tags = ImageTags(path="x.jpg", gps_lat_deg=offset, gps_lon_deg=offset, gps_alt_amsl_m=100.0)
+    position, why = _position(tags, relative=False)
+    assert (position is None) is placeholder
+    if placeholder:
+        assert "placeholder position at 0/0" in why

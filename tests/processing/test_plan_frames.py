@@ -13,8 +13,8 @@ from shared_data import SHARED_DATA
 
 from planner.errors import PlanFolderError
 from planner.plan_folder import is_plan_folder, write_outputs
-from planner.spec import load_spec, parse_spec
-from planner.survey import plan_polygons, plan_survey
+from planner.spec import parse_spec
+from planner.survey import plan_polygons
 from processing.errors import FramesError, GroundError
 from processing.footprints import project_footprints
 from processing.frames import AltitudeReference, AttitudeSource, local_frame_at
@@ -22,19 +22,10 @@ from processing.ground_choice import ground_from_options
 from processing.plan_frames import frames_from_plan
 
 GARFIELD = SHARED_DATA / "garfield_rgb"
-MISSIONS = Path(__file__).resolve().parents[2] / "missions"
 
 
-@pytest.fixture(scope="module")
-def gully_plan(tmp_path_factory: pytest.TempPathFactory) -> tuple[object, Path]:
-    plan = plan_survey(load_spec(MISSIONS / "bardenas-gully.toml"))
-    folder = tmp_path_factory.mktemp("plans") / "gully"
-    write_outputs(plan, folder)
-    return plan, folder
-
-
-def test_plan_folder_frames_match_the_stations(gully_plan: tuple[object, Path]) -> None:
-    plan, folder = gully_plan
+def test_plan_folder_frames_match_the_stations(gully: tuple[object, Path]) -> None:
+    plan, folder = gully
     assert is_plan_folder(folder) and not is_plan_folder(GARFIELD)
     frames, info = frames_from_plan(folder)
     st = plan.stations  # type: ignore[attr-defined]
@@ -45,10 +36,10 @@ def test_plan_folder_frames_match_the_stations(gully_plan: tuple[object, Path]) 
     assert frames.alt_reference is AltitudeReference.REL_HOME
     assert frames.attitude_source is AttitudeSource.PLAN
     assert frames.line_index is not None and len(np.unique(frames.line_index)) == plan.summary.line_count  # type: ignore[attr-defined]
-    assert info.front_overlap_pct == 80 and info.side_overlap_pct == 70
+    assert info.planned.summary.front_overlap_pct == 80 and info.planned.summary.side_overlap_pct == 70
     assert info.camera.id == "canon-eos-350d-20mm"
-    assert info.area_lonlat is not None
-    assert info.area_lonlat.symmetric_difference(plan.area_lonlat).area < 1e-6 * plan.area_lonlat.area  # type: ignore[attr-defined]
+    assert info.planned.area_lonlat is not None
+    assert info.planned.area_lonlat.symmetric_difference(plan.area_lonlat).area < 1e-6 * plan.area_lonlat.area  # type: ignore[attr-defined]
     choice = ground_from_options(frames=frames)
     assert "take-off point" in choice.description
     with pytest.raises(GroundError, match="--takeoff-elevation-m"):
@@ -102,8 +93,8 @@ def test_plan_attitude_reproduces_the_planners_footprints(
     assert abs(local.true_north_grid_bearing_deg(centre.x, centre.y)) < 1e-6
 
 
-def test_plan_folder_errors(tmp_path: Path, gully_plan: tuple[object, Path]) -> None:
-    _, folder = gully_plan
+def test_plan_folder_errors(tmp_path: Path, gully: tuple[object, Path]) -> None:
+    _, folder = gully
     with pytest.raises(PlanFolderError, match="not a plan folder"):
         frames_from_plan(tmp_path)
     broken = tmp_path / "broken"
