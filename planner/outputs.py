@@ -15,12 +15,11 @@ import contextlib
 import math
 import os
 import shutil
+import sys
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
-
-import numpy as np
 
 from .errors import OutputExistsError
 
@@ -108,8 +107,10 @@ def json_safe(value: Any) -> Any:
         return {str(k): json_safe(v) for k, v in value.items()}
     if isinstance(value, list | tuple):
         return [json_safe(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return json_safe(value.tolist())
-    if isinstance(value, np.generic):
-        return json_safe(value.item())
+    numpy = sys.modules.get("numpy")  # no numpy value exists unless numpy was imported
+    if numpy is not None:
+        if isinstance(value, numpy.ndarray):
+            return json_safe(value.tolist())
+        if isinstance(value, numpy.generic):
+            return json_safe(value.item())
     return value

@@ -11,6 +11,7 @@ import os
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from planner.camera import Camera
 from planner.plan_folder import is_plan_folder
@@ -18,7 +19,7 @@ from planner.plan_folder import is_plan_folder
 from .errors import FramesError
 from .frames import Frames
 from .ground import Ground
-from .ground_choice import ground_for_plan, images_ground
+from .ground_choice import GroundChoice, ground_for_plan, images_ground
 from .image_frames import image_paths, read_image_frames
 from .plan_frames import PlanInfo, frames_from_plan, read_plan_info
 
@@ -60,22 +61,19 @@ def gather_inputs(
     :func:`processing.ground_choice.ground_from_options`; ``progress(done, total)`` after each
     image read.
     """
+    ground: dict[str, Any] = {
+        "dem": dem,
+        "ground_elevation_m": ground_elevation_m,
+        "takeoff_elevation_m": takeoff_elevation_m,
+    }
     if is_plan_folder(source):
         if plan_dir is not None:
             raise FramesError(f"{source} is a plan folder already; give no other plan folder")
         frames, plan = frames_from_plan(source, camera=camera)
-        choice = ground_for_plan(
-            frames=frames,
-            info=plan,
-            dem=dem,
-            ground_elevation_m=ground_elevation_m,
-            takeoff_elevation_m=takeoff_elevation_m,
-        )
-        return CheckInputs(
-            frames=choice.frames,
-            ground=choice.ground,
-            ground_description=choice.description,
-            plan=plan,
+        choice = ground_for_plan(frames=frames, info=plan, **ground)
+        return _inputs(
+            choice,
+            plan,
             notes=("frames are the plan's stations (attitude as planned)",),
             left_out=choice.left_out,
         )
@@ -91,21 +89,20 @@ def gather_inputs(
     images = read_image_frames(
         source, camera=camera, fallback_camera=flown_plan.camera if flown_plan else None, progress=advance
     )
-    choice = images_ground(
-        frames=images.frames,
-        plan=flown_plan,
-        dem=dem,
-        ground_elevation_m=ground_elevation_m,
-        takeoff_elevation_m=takeoff_elevation_m,
-    )
-    return CheckInputs(
-        frames=choice.frames,
-        ground=choice.ground,
-        ground_description=choice.description,
-        plan=flown_plan,
+    choice = images_ground(frames=images.frames, plan=flown_plan, **ground)
+    return _inputs(
+        choice,
+        flown_plan,
         notes=(f"camera: {images.camera_source}", *images.notes),
         warnings=images.warnings,
         unpositioned=images.unpositioned,
         left_out=(*images.left_out, *choice.left_out),
         camera_source=images.camera_source,
+    )
+
+
+def _inputs(choice: GroundChoice, plan: PlanInfo | None, **said: Any) -> CheckInputs:
+    """The frames and ground chosen, the plan, and what the report says of the inputs."""
+    return CheckInputs(
+        frames=choice.frames, ground=choice.ground, ground_description=choice.description, plan=plan, **said
     )
