@@ -28,7 +28,7 @@ class PlanRun:
     @property
     def file_count(self) -> int:
         """How many files :meth:`write` writes (for a progress bar)."""
-        from .export import OUTPUT_FILES
+        from .plan_folder import OUTPUT_FILES
 
         return len(OUTPUT_FILES) * (1 + len(self.sorties))
 
@@ -47,7 +47,7 @@ class PlanRun:
             return write_with_sorties(
                 self.plan, self.sorties, Path(out_dir), overwrite=overwrite, progress=progress
             )
-        from .export import write_outputs
+        from .plan_folder import write_outputs
 
         return write_outputs(self.plan, out_dir, overwrite=overwrite, progress=progress)
 

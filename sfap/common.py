@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import json
-import math
 import sys
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from typing import Any, TypeVar
 
 import click
+
+from planner.outputs import json_safe
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -21,22 +22,8 @@ overwrite_option = click.option(
 )
 
 
-def _clean(value: Any) -> Any:
-    """JSON has no NaN: None instead, and numpy scalars as Python numbers."""
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    if isinstance(value, dict):
-        return {k: _clean(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_clean(v) for v in value]
-    item = getattr(value, "item", None)
-    if callable(item):  # numpy scalars
-        return _clean(item())
-    return value
-
-
 def dumps_json(data: Any) -> str:
-    return json.dumps(_clean(data), indent=2, allow_nan=False)
+    return json.dumps(json_safe(data), indent=2, allow_nan=False)
 
 
 def echo_json(data: Any) -> None:

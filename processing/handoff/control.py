@@ -4,7 +4,7 @@
 of the block and lie inside it, and at least three control points must be seen in two frames
 or more. :func:`control_accuracy` places a model by the control points and measures control and
 check residuals (:func:`processing.accuracy.assess_accuracy`) in a local metric frame around the
-points (:func:`processing.inputs.local_frame_at`: metres east and north, z the surveyed elevation).
+points (:func:`processing.frames.local_frame_at`: metres east and north, z the surveyed elevation).
 """
 
 from __future__ import annotations
@@ -18,8 +18,8 @@ from numpy.typing import NDArray
 from planner.geo import LocalFrame
 
 from ..accuracy import MIN_CONTROL_POINTS, AccuracyResult, View, assess_accuracy
+from ..frames import local_frame_at
 from ..gcp import GcpSet, choose_check_points
-from ..inputs import local_frame_at
 from .block import Block
 from .errors import HandoffInputError
 

@@ -9,28 +9,14 @@ import base64
 import html
 import io
 import json
-import math
 from typing import Any
 
 import numpy as np
 
+from planner.outputs import json_safe
+
 from ..accuracy import SMITH_VERICAT_RATIO, TEXTBOOK_RATIO_RANGE, AccuracyResult
 from .quicklook import QuickLook
-
-
-def _clean(value: Any) -> Any:
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    if isinstance(value, dict):
-        return {str(k): _clean(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_clean(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return _clean(value.tolist())
-    item = getattr(value, "item", None)
-    if callable(item):
-        return _clean(item())
-    return value
 
 
 def quicklook_dict(q: QuickLook) -> dict[str, Any]:
@@ -64,7 +50,7 @@ def accuracy_dict(
 
 
 def write_json(data: dict[str, Any]) -> str:
-    return json.dumps(_clean(data), indent=2, allow_nan=False)
+    return json.dumps(json_safe(data), indent=2, allow_nan=False)
 
 
 def _png(fig: Any) -> str:

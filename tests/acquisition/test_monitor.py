@@ -40,9 +40,9 @@ from acquisition.simulator.server import SimulatedVehicle
 from acquisition.telemetry.tlog import read_tlog
 from acquisition.transfer import upload_mission
 from planner.errors import OutputExistsError
-from planner.export import write_outputs
 from planner.mission import Autopilot
 from planner.plan import SurveyPlan
+from planner.plan_folder import write_outputs
 from planner.spec import load_spec
 from planner.survey import plan_survey
 
