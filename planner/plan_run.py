@@ -1,6 +1,6 @@
 """What ``sfap plan`` does, as one library call: a mission spec planned (planner.survey), cut to
 what is left after a flight cut short (planner.resume), split into sorties when the vehicle has
-an endurance (planner.sorties), and its files written (planner.export)."""
+an endurance (planner.sorties), and its files written (planner.plan_folder)."""
 
 from __future__ import annotations
 
