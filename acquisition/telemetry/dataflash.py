@@ -44,8 +44,16 @@ from numpy.typing import NDArray
 
 from ..errors import TelemetryError
 from .gpstime import BootClock, fit_boot_clock, gps_week_ms_to_utc_s, time_order
-from .model import PROGRESS_STEP_BYTES, AttitudeTrack, CameraEvents, FlightLog, PositionTrack, ReadProgress
-from .tlog import yaw_to_earth_deg
+from .model import (
+    PROGRESS_STEP_BYTES,
+    AttitudeTrack,
+    CameraEvents,
+    FlightLog,
+    PositionTrack,
+    ReadProgress,
+    flight_log,
+    gimbal_track,
+)
 
 log = logging.getLogger(__name__)
 
@@ -372,23 +380,12 @@ def _gimbal(
     if yaw_f is None:
         return None, [f"{path}: MNT without a yaw ({mnt.names}); gimbal left out"]
     # YawE is earth-frame; YawB (and the old Yaw) are relative to the vehicle's nose.
-    yaw = mnt.angle_deg(yaw_f)
-    if yaw_f != "YawE":
-        yaw_e = yaw_to_earth_deg(yaw, time_utc, vehicle)
-        if yaw_e is None:
-            return None, [f"{path}: MNT yaw is body-frame and there is no ATT; gimbal left out"]
-        yaw = yaw_e
-    o = time_order(time_utc)
-    return (
-        AttitudeTrack(
-            time_utc_s=time_utc[o],
-            roll_deg=mnt.angle_deg(roll_f)[o],
-            pitch_deg=mnt.angle_deg(pitch_f)[o],
-            yaw_deg=np.mod(yaw[o], 360.0),
-            source="dataflash:MNT",
-        ),
-        [],
-    )
+    rpy = (mnt.angle_deg(roll_f), mnt.angle_deg(pitch_f), mnt.angle_deg(yaw_f))
+    earth = np.full(len(time_utc), yaw_f == "YawE")
+    track = gimbal_track(time_utc, rpy, earth, vehicle, "dataflash:MNT")
+    if track is None:
+        return None, [f"{path}: MNT yaw is body-frame and there is no ATT; gimbal left out"]
+    return track, []
 
 
 _SKIPPED = re.compile(r"Skipped (\d+) bad bytes in log at offset (\d+)")
@@ -432,14 +429,12 @@ def read_dataflash(path: str | os.PathLike[str], progress: ReadProgress | None =
     attitudes = _attitudes(tables, clock)
     gimbal, w = _gimbal(p, tables, clock, attitudes)
     warnings += w
-    for w_ in warnings:
-        log.warning("%s", w_)
-    return FlightLog(
-        path=p,
-        format="dataflash",
+    return flight_log(
+        p,
+        "dataflash",
+        warnings,
         events=events,
         positions=_positions(tables, clock),
         attitudes=attitudes,
         gimbal=gimbal,
-        warnings=tuple(warnings),
     )

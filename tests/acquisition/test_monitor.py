@@ -24,19 +24,13 @@ from hypothesis import strategies as st
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 from pyproj import Geod
 
+from acquisition.flight_recorder import CSV_COLUMNS, FlightRecorder
 from acquisition.link import Link
-from acquisition.monitor import (
-    CSV_COLUMNS,
-    FlightRecorder,
-    MonitorResult,
-    MonitorState,
-    StationPlan,
-    StopReason,
-    _SeqCounter,
-    load_station_plan,
-    monitor,
-)
+from acquisition.link_quality import SeqCounter
+from acquisition.monitor import MonitorResult, StopReason, monitor
+from acquisition.monitor_state import MonitorState
 from acquisition.simulator.server import SimulatedVehicle
+from acquisition.station_tracker import StationPlan, load_station_plan
 from acquisition.telemetry.tlog import read_tlog
 from acquisition.transfer import upload_mission
 from planner.errors import OutputExistsError
@@ -958,7 +952,7 @@ def test_loss_is_counted_exactly_for_any_bursts_and_swaps(
             delivered[k], delivered[k + 1] = delivered[k + 1], delivered[k]
             late_truth += 1
             last_swap = k
-    counter = _SeqCounter()
+    counter = SeqCounter()
     for number in delivered:
         counter.add((number + start) % 256)
     assert counter.received == len(delivered)
