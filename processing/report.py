@@ -619,7 +619,7 @@ def write_report(
 ) -> list[Path]:
     """Write every report file (module docstring) into ``out_dir``, all or nothing; with
     ``refly``, that mission's files (``sfap plan``'s set) into ``out_dir/refly``."""
-    from planner.export import OUTPUT_FILES, write_outputs
+    from planner.plan_folder import OUTPUT_FILES, write_outputs
 
     final = Path(out_dir)
     with staged_output_dir(final, overwrite=overwrite) as staging:

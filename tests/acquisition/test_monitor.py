@@ -34,7 +34,7 @@ from acquisition.station_tracker import StationPlan, load_station_plan
 from acquisition.telemetry.tlog import read_tlog
 from acquisition.transfer import upload_mission
 from planner.errors import OutputExistsError
-from planner.export import write_outputs
+from planner.plan_folder import write_outputs
 from planner.mission import Autopilot
 from planner.plan import SurveyPlan
 from planner.spec import load_spec

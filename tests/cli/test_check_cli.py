@@ -15,7 +15,7 @@ from shared_data import SHARED_DATA
 
 from acquisition.exif import GeoTag, strip_gps, write_geotag
 from acquisition.simulator.flight import FlightSimulator
-from planner.export import write_outputs
+from planner.plan_folder import write_outputs
 from planner.formats.qgc_plan import read_plan
 from planner.mission import Autopilot, VehicleType
 from planner.spec import load_spec, parse_spec

@@ -23,7 +23,7 @@ from shared_data import SHARED_DATA
 
 from acquisition.simulator.flight import FlightSimulator
 from planner.errors import OutputExistsError
-from planner.export import write_outputs
+from planner.plan_folder import write_outputs
 from planner.mission import Autopilot, VehicleType
 from planner.spec import load_spec, parse_spec
 from planner.survey import plan_polygons, plan_survey

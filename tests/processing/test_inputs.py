@@ -22,7 +22,7 @@ from shared_data import SHARED_DATA
 from acquisition.exif import GeoTag, read_tags, strip_gps, write_geotag
 from planner.camera import Orientation
 from planner.camera_db import get_camera
-from planner.export import write_outputs
+from planner.plan_folder import write_outputs
 from planner.spec import load_spec, parse_spec
 from planner.survey import plan_polygons, plan_survey
 from processing.errors import FramesError, GroundError
