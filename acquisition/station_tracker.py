@@ -32,18 +32,16 @@ Missed stations (the definition :class:`StationTracker` implements)
 
 from __future__ import annotations
 
-import json
 import math
 import os
 from dataclasses import dataclass
-from pathlib import Path
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from planner.errors import InputError
 from planner.geo import LocalFrame
+from planner.plan_folder import PlanFolder, read_plan_folder
 
 #: Smallest match radius of a station, metres (GNSS noise of a plain receiver).
 MIN_MATCH_RADIUS_M = 5.0
@@ -88,70 +86,32 @@ class StationPlan:
 
 
 def load_station_plan(plan_dir: str | os.PathLike[str]) -> StationPlan:
-    """Read ``stations.geojson`` and ``summary.json`` of a plan folder (``sfap plan -o DIR``).
+    """The stations of a plan folder (``sfap plan -o DIR``, read by
+    :func:`planner.plan_folder.read_plan_folder`), each with the match radius of its pass.
 
-    Raises :class:`InputError` naming the file when either is missing or malformed.
+    Raises :class:`~planner.errors.PlanFolderError` naming the folder or the file when the
+    folder is not a plan folder or a file is missing or malformed.
     """
-    folder = Path(plan_dir)
-    stations_path = folder / "stations.geojson"
-    summary_path = folder / "summary.json"
-    if not folder.is_dir():
-        raise InputError(f"plan folder {folder} does not exist; give the folder `sfap plan -o` wrote")
-    summary: dict[str, Any] = {}
-    if summary_path.exists():
-        try:
-            summary = json.loads(summary_path.read_text(encoding="utf-8"))
-        except (OSError, ValueError) as error:
-            raise InputError(f"cannot read {summary_path}: {error}") from error
-    try:
-        data = json.loads(stations_path.read_text(encoding="utf-8"))
-        features = data["features"]
-    except FileNotFoundError as error:
-        raise InputError(
-            f"{stations_path} is missing; --plan must be a folder written by `sfap plan -o`"
-        ) from error
-    except (OSError, ValueError, KeyError, TypeError) as error:
-        raise InputError(f"cannot read {stations_path}: {error}") from error
-    default_d = summary.get("trigger_distance_m")
-    per_pass = {
-        int(p["index"]): p.get("trigger_distance_m")
-        for p in summary.get("passes", [])
-        if isinstance(p, dict) and "index" in p
-    }
-    rows: list[tuple[float, float, int, int, float, float]] = []
-    for k, feature in enumerate(features):
-        try:
-            props = feature["properties"]
-            lat, lon = float(props["lat_deg"]), float(props["lon_deg"])
-            pass_index = int(props.get("pass", 0))
-            line_index = int(props.get("line", 0))
-            heading = props.get("heading_deg")
-        except (KeyError, TypeError, ValueError) as error:
-            raise InputError(
-                f"{stations_path}: feature {k} lacks lat_deg/lon_deg properties ({error}); "
-                f"re-plan with `sfap plan`"
-            ) from error
-        d = per_pass.get(pass_index, default_d)
-        radius = max(float(d) / 2.0, MIN_MATCH_RADIUS_M) if d else MIN_MATCH_RADIUS_M
-        rows.append(
-            (
-                lat,
-                lon,
-                pass_index,
-                line_index,
-                math.nan if heading is None else float(heading),
-                radius,
-            )
-        )
-    a = np.array(rows, dtype=np.float64).reshape(-1, 6)
+    return station_plan(read_plan_folder(plan_dir))
+
+
+def station_plan(folder: PlanFolder) -> StationPlan:
+    """The :class:`StationPlan` of a plan folder as read: the match radius of a station is half
+    its pass's trigger distance (the plan's when the pass does not say), at least
+    :data:`MIN_MATCH_RADIUS_M`."""
+    stations = folder.stations
+    default_d = folder.summary.trigger_distance_m
+    per_pass = {p.index: p.trigger_distance_m for p in folder.passes}
+    d = np.array([per_pass.get(int(k), default_d) or 0.0 for k in stations.pass_index], dtype=np.float64)
+    radius = np.where(d > 0, np.maximum(d / 2.0, MIN_MATCH_RADIUS_M), MIN_MATCH_RADIUS_M)
     return StationPlan(
-        name=str(summary.get("name", folder.name)),
-        lat_deg=a[:, 0].copy(),
-        lon_deg=a[:, 1].copy(),
-        pass_index=a[:, 2].astype(np.int64),
-        line_index=a[:, 3].astype(np.int64),
-        heading_deg=a[:, 4].copy(),
-        match_radius_m=a[:, 5].copy(),
+        name=folder.summary.name,
+        lat_deg=stations.lat_deg.copy(),
+        lon_deg=stations.lon_deg.copy(),
+        pass_index=stations.pass_index.copy(),
+        line_index=stations.line_index.copy(),
+        heading_deg=stations.heading_deg.copy(),
+        match_radius_m=radius.reshape(len(stations.lat_deg)),
         trigger_distance_m=float(default_d) if default_d else None,
     )
 

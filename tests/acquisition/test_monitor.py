@@ -34,9 +34,9 @@ from acquisition.station_tracker import StationPlan, load_station_plan
 from acquisition.telemetry.tlog import read_tlog
 from acquisition.transfer import upload_mission
 from planner.errors import OutputExistsError
-from planner.plan_folder import write_outputs
 from planner.mission import Autopilot
 from planner.plan import SurveyPlan
+from planner.plan_folder import write_outputs
 from planner.spec import load_spec
 from planner.survey import plan_survey
 
