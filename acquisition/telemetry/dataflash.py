@@ -51,8 +51,9 @@ from .model import (
     FlightLog,
     PositionTrack,
     ReadProgress,
-    flight_log,
+    assemble_log,
     gimbal_track,
+    position_track,
 )
 
 log = logging.getLogger(__name__)
@@ -320,30 +321,17 @@ def _positions(t: dict[str, _Columns], clock: BootClock | None) -> PositionTrack
         time_utc = clock.utc_s(boot)
         lat, lon = pos.col("Lat"), pos.col(_field(pos.names, "Lng", "Lon") or "Lng")
         keep = ~((lat == 0) & (lon == 0))
-        o = time_order(np.where(keep, time_utc, np.nan))
         rel_f = _field(pos.names, "RelHomeAlt", "RelAlt")
-        return PositionTrack(
-            time_utc_s=time_utc[o],
-            lat_deg=lat[o],
-            lon_deg=lon[o],
-            alt_amsl_m=pos.col("Alt")[o],
-            alt_rel_home_m=pos.col(rel_f)[o] if rel_f else None,
-            source="dataflash:POS",
-        )
+        rel = pos.col(rel_f) if rel_f else None
+        return position_track(time_utc, (lat, lon), pos.col("Alt"), rel, "dataflash:POS", keep=keep)
     gps = t.get("GPS")
     if gps is not None and len(gps) and (boot := _boot_s(gps)) is not None:
         time_utc = clock.utc_s(boot)
         ok = gps.col("Status") >= _GPS_3D_FIX if gps.has("Status") else np.ones(len(gps), bool)
         if gps.has("I"):
             ok &= gps.col("I") == 0
-        o = time_order(np.where(ok, time_utc, np.nan))
-        return PositionTrack(
-            time_utc_s=time_utc[o],
-            lat_deg=gps.col("Lat")[o],
-            lon_deg=gps.col(_field(gps.names, "Lng", "Lon") or "Lng")[o],
-            alt_amsl_m=gps.col("Alt")[o],
-            source="dataflash:GPS",
-        )
+        lat_lon = (gps.col("Lat"), gps.col(_field(gps.names, "Lng", "Lon") or "Lng"))
+        return position_track(time_utc, lat_lon, gps.col("Alt"), None, "dataflash:GPS", keep=ok)
     return None
 
 
@@ -422,19 +410,4 @@ def read_dataflash(path: str | os.PathLike[str], progress: ReadProgress | None =
         if size and end == 0:
             raise TelemetryError(f"{p}: no DataFlash message could be read ({size} bytes)")
         warnings.append(f"{p}: none of {', '.join(_TYPES)} in the log")
-    clock, w = _clock(p, tables)
-    warnings += w
-    events, w = _events(p, tables, clock)
-    warnings += w
-    attitudes = _attitudes(tables, clock)
-    gimbal, w = _gimbal(p, tables, clock, attitudes)
-    warnings += w
-    return flight_log(
-        p,
-        "dataflash",
-        warnings,
-        events=events,
-        positions=_positions(tables, clock),
-        attitudes=attitudes,
-        gimbal=gimbal,
-    )
+    return assemble_log(p, "dataflash", warnings, tables, _clock, _events, _attitudes, _gimbal, _positions)

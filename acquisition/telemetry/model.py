@@ -9,6 +9,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
+from typing import TypeVar
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -16,6 +17,9 @@ from numpy.typing import ArrayLike, NDArray
 from .gpstime import time_order
 
 log = logging.getLogger(__name__)
+
+S = TypeVar("S")  # what a reader parsed (tables, a ULog)
+C = TypeVar("C")  # its clock: boot time -> UTC
 
 F64 = NDArray[np.float64]
 
@@ -112,6 +116,26 @@ def yaw_to_earth_deg(
     return np.mod(np.asarray(rel_yaw_deg, dtype=np.float64) + veh, 360.0)
 
 
+def position_track(
+    time_utc_s: F64,
+    lat_lon_deg: tuple[ArrayLike, ArrayLike],
+    alt_amsl_m: ArrayLike | None,
+    alt_rel_home_m: ArrayLike | None,
+    source: str,
+    keep: ArrayLike | None = None,
+) -> PositionTrack:
+    """A :class:`PositionTrack` of the rows in time order, those with ``keep`` False (no fix,
+    another receiver) or no finite time left out; columns as float64, None where not logged."""
+    o = time_order(time_utc_s if keep is None else np.where(keep, time_utc_s, np.nan))
+
+    def column(values: ArrayLike | None) -> F64 | None:
+        return None if values is None else np.asarray(values, dtype=np.float64)[o]
+
+    lat, lon = (np.asarray(v, dtype=np.float64)[o] for v in lat_lon_deg)
+    rest = {"alt_amsl_m": column(alt_amsl_m), "alt_rel_home_m": column(alt_rel_home_m)}
+    return PositionTrack(time_utc_s=time_utc_s[o], lat_deg=lat, lon_deg=lon, source=source, **rest)
+
+
 def gimbal_track(
     time_utc_s: F64,
     rpy_deg: tuple[F64, F64, F64],
@@ -156,3 +180,28 @@ def flight_log(
         log.warning("%s", warning)
     tracks = FlightLog(path=path, format=fmt, positions=positions, attitudes=attitudes, gimbal=gimbal)
     return replace(tracks, events=events, warnings=tuple(warnings))
+
+
+def assemble_log(
+    path: str,
+    fmt: str,
+    warnings: list[str],
+    source: S,
+    clock: Callable[[str, S], tuple[C, list[str]]],
+    events: Callable[[str, S, C], tuple[CameraEvents | None, list[str]]],
+    attitudes: Callable[[S, C], AttitudeTrack | None],
+    gimbal: Callable[[str, S, C, AttitudeTrack | None], tuple[AttitudeTrack | None, list[str]]],
+    positions: Callable[[S, C], PositionTrack | None],
+) -> FlightLog:
+    """The steps of a reader whose log carries a boot clock, in order: the clock onto UTC, the
+    camera events, the vehicle's attitudes, the gimbal (its yaw made earth-frame with those
+    attitudes) and the positions; each step's warnings are added to ``warnings``."""
+    utc, notes = clock(path, source)
+    warnings += notes
+    camera, notes = events(path, source, utc)
+    warnings += notes
+    vehicle = attitudes(source, utc)
+    mount, notes = gimbal(path, source, utc, vehicle)
+    warnings += notes
+    track = positions(source, utc)
+    return flight_log(path, fmt, warnings, events=camera, positions=track, attitudes=vehicle, gimbal=mount)

@@ -294,6 +294,9 @@ def _arr(rows: list[tuple[float, ...]], width: int) -> F64:
     return np.array(rows, dtype=np.float64).reshape(-1, width)
 
 
+_EVENT_COLUMNS = ("lat_deg", "lon_deg", "alt_amsl_m", "alt_rel_home_m", "roll_deg", "pitch_deg", "yaw_deg")
+
+
 def _events(path: str, r: _Reading, clock: _Clock) -> tuple[CameraEvents | None, list[str]]:
     warnings: list[str] = []
     present = {
@@ -315,47 +318,26 @@ def _events(path: str, r: _Reading, clock: _Clock) -> tuple[CameraEvents | None,
             f"{path}: camera events taken from {chosen} ({present[chosen]}); also present and "
             f"not used: {', '.join(others)}"
         )
-    if chosen == "CAMERA_FEEDBACK":
-        if len(r.cam_idx) > 1:
-            warnings.append(
-                f"{path}: CAMERA_FEEDBACK from several cameras (cam_idx {sorted(r.cam_idx)}); "
-                f"their image indices are mixed in one table"
-            )
-        a = _arr(r.rows[chosen], 12)
-        t, notes = _time_usec_to_utc(a[:, 3], a[:, 1], a[:, 2], clock)
-        order = time_order(t, a[:, 4])
-        cols = {
-            "lat_deg": a[:, 5],
-            "lon_deg": a[:, 6],
-            "alt_amsl_m": a[:, 7],
-            "alt_rel_home_m": a[:, 8],
-            "roll_deg": a[:, 9],
-            "pitch_deg": a[:, 10],
-            "yaw_deg": a[:, 11],
-        }
-        seq = a[:, 4]
-    elif chosen == "CAMERA_IMAGE_CAPTURED":
+    if chosen == "CAMERA_FEEDBACK" and len(r.cam_idx) > 1:
+        warnings.append(
+            f"{path}: CAMERA_FEEDBACK from several cameras (cam_idx {sorted(r.cam_idx)}); "
+            f"their image indices are mixed in one table"
+        )
+    # rows: receive time, boot segment, boot time, time, index, then for a positional event
+    # lat, lon, alt AMSL, alt above home and the attitude (Euler angles or a quaternion)
+    if chosen == "CAMERA_IMAGE_CAPTURED":
         a = _arr(r.rows[chosen], 13)
         t = np.where(a[:, 3] > 0, a[:, 3], clock.utc_s(a[:, 1], a[:, 2]))
-        notes = []
-        roll, pitch, yaw = roll_pitch_yaw_deg_from_quaternion(a[:, 9], a[:, 10], a[:, 11], a[:, 12])
-        order = time_order(t, a[:, 4])
-        cols = {
-            "lat_deg": a[:, 5],
-            "lon_deg": a[:, 6],
-            "alt_amsl_m": a[:, 7],
-            "alt_rel_home_m": a[:, 8],
-            "roll_deg": roll,
-            "pitch_deg": pitch,
-            "yaw_deg": yaw,
-        }
-        seq = a[:, 4]
+        notes: list[str] = []
+        angles: tuple[F64, ...] = roll_pitch_yaw_deg_from_quaternion(a[:, 9], a[:, 10], a[:, 11], a[:, 12])
     else:
-        a = _arr(r.rows[chosen], 5)
+        a = _arr(r.rows[chosen], 12 if chosen == "CAMERA_FEEDBACK" else 5)
         t, notes = _time_usec_to_utc(a[:, 3], a[:, 1], a[:, 2], clock)
-        order = time_order(t, a[:, 4])
-        cols = {}
-        seq = a[:, 4]
+        angles = (a[:, 9], a[:, 10], a[:, 11]) if chosen == "CAMERA_FEEDBACK" else ()
+    seq = a[:, 4]
+    order = time_order(t, seq)
+    values = (a[:, 5], a[:, 6], a[:, 7], a[:, 8], *angles) if angles else ()
+    cols = dict(zip(_EVENT_COLUMNS, values, strict=False))
     warnings += [f"{path}: {chosen}: {n}" for n in notes]
     untimed = int(np.count_nonzero(~np.isfinite(t)))
     if untimed:
@@ -383,26 +365,11 @@ def _positions(path: str, r: _Reading, clock: _Clock) -> PositionTrack | None:
             if len(a) == 0:
                 return None
         t = clock.utc_s(a[:, 1], a[:, 2])
-        o = time_order(t)
-        return PositionTrack(
-            time_utc_s=t[o],
-            lat_deg=a[o, 3],
-            lon_deg=a[o, 4],
-            alt_amsl_m=a[o, 5],
-            alt_rel_home_m=a[o, 6],
-            source="tlog:GLOBAL_POSITION_INT",
-        )
+        return model.position_track(t, (a[:, 3], a[:, 4]), a[:, 5], a[:, 6], "tlog:GLOBAL_POSITION_INT")
     if r.rows["GPS_RAW_INT"]:
         a = _arr(r.rows["GPS_RAW_INT"], 7)
         t, _ = _time_usec_to_utc(a[:, 3], a[:, 1], a[:, 2], clock)
-        o = time_order(t)
-        return PositionTrack(
-            time_utc_s=t[o],
-            lat_deg=a[o, 4],
-            lon_deg=a[o, 5],
-            alt_amsl_m=a[o, 6],
-            source="tlog:GPS_RAW_INT",
-        )
+        return model.position_track(t, (a[:, 4], a[:, 5]), a[:, 6], None, "tlog:GPS_RAW_INT")
     return None
 
 

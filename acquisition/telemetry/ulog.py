@@ -37,7 +37,15 @@ from ..attitude import roll_pitch_yaw_deg_from_quaternion
 from ..errors import TelemetryError
 from ..mavlink_messages import deg_from_e7, gimbal_yaw_in_earth_frame
 from .gpstime import BootClock, fit_boot_clock, time_order
-from .model import AttitudeTrack, CameraEvents, FlightLog, PositionTrack, flight_log, gimbal_track
+from .model import (
+    AttitudeTrack,
+    CameraEvents,
+    FlightLog,
+    PositionTrack,
+    assemble_log,
+    gimbal_track,
+    position_track,
+)
 
 log = logging.getLogger(__name__)
 
@@ -172,14 +180,7 @@ def _positions(ulog: Any, clock: BootClock | None) -> PositionTrack | None:
     d = _topic(ulog, "vehicle_global_position")
     if d is not None:
         t = clock.utc_s(d["timestamp"] / 1e6)
-        o = time_order(t)
-        return PositionTrack(
-            time_utc_s=t[o],
-            lat_deg=d["lat"][o].astype(np.float64),
-            lon_deg=d["lon"][o].astype(np.float64),
-            alt_amsl_m=d["alt"][o].astype(np.float64),
-            source="ulog:vehicle_global_position",
-        )
+        return position_track(t, (d["lat"], d["lon"]), d["alt"], None, "ulog:vehicle_global_position")
     for name in _GPS_TOPICS:
         d = _topic(ulog, name)
         if d is None:
@@ -191,14 +192,7 @@ def _positions(ulog: Any, clock: BootClock | None) -> PositionTrack | None:
             lat, lon, alt = deg_from_e7(d["lat"]), deg_from_e7(d["lon"]), d["alt"] * 1e-3
         ok = d["fix_type"] >= 3 if "fix_type" in d else np.ones(len(lat), dtype=bool)
         t = clock.utc_s(d["timestamp"] / 1e6)
-        o = time_order(np.where(ok, t, np.nan))
-        return PositionTrack(
-            time_utc_s=t[o],
-            lat_deg=np.asarray(lat, dtype=np.float64)[o],
-            lon_deg=np.asarray(lon, dtype=np.float64)[o],
-            alt_amsl_m=np.asarray(alt, dtype=np.float64)[o],
-            source=f"ulog:{name}",
-        )
+        return position_track(t, (lat, lon), alt, None, f"ulog:{name}", keep=ok)
     return None
 
 
@@ -256,19 +250,4 @@ def read_ulog(path: str | os.PathLike[str]) -> FlightLog:
         )
     if ulog.file_corruption:
         warnings.append(f"{p}: pyulog found corrupt data and skipped it")
-    clock, w = _clock(p, ulog)
-    warnings += w
-    events, w = _events(p, ulog, clock)
-    warnings += w
-    attitudes = _attitudes(ulog, clock)
-    gimbal, w = _gimbal(p, ulog, clock, attitudes)
-    warnings += w
-    return flight_log(
-        p,
-        "ulog",
-        warnings,
-        events=events,
-        positions=_positions(ulog, clock),
-        attitudes=attitudes,
-        gimbal=gimbal,
-    )
+    return assemble_log(p, "ulog", warnings, ulog, _clock, _events, _attitudes, _gimbal, _positions)
