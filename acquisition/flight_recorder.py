@@ -1,17 +1,11 @@
 """The flight recorder: the tlog, the trigger CSV and the :class:`MonitorState`, from received messages.
 
 :class:`FlightRecorder` (no sockets) consumes pymavlink messages with their receive time and
-keeps three things up to date:
+keeps the recording up to date:
 
-* ``flight.tlog``: every message, as MAVProxy and QGroundControl write a telemetry log: an
-  8-byte big-endian receive time (microseconds since the Unix epoch, UTC, the ground
-  station's clock) then the packet's raw bytes (``msg.get_msgbuf()``, signature included).
-  The file is flushed after every message, so a crash of this process loses nothing that
-  was received; it is also fsync'ed after every camera event and at least once a second,
-  so a power cut loses at most the last second.
-* ``triggers.csv``: one row per camera event (header :data:`CSV_COLUMNS`, units in the
-  names), appended and flushed and fsync'ed row by row, never rewritten. Which messages make
-  an event, and their times: :mod:`acquisition.camera_feed`.
+* ``flight.tlog`` (every message) and ``triggers.csv`` (one row per camera event), written
+  as :mod:`acquisition.recording_files` says; which messages make an event, and their
+  times: :mod:`acquisition.camera_feed`.
 * :class:`~acquisition.monitor_state.MonitorState`: mission progress, photos taken against
   planned stations (:mod:`acquisition.station_tracker`), the stations missed so far, link
   quality (:mod:`acquisition.link_quality`).
@@ -24,20 +18,13 @@ is over when the vehicle disarms after having flown: armed and more than
 
 from __future__ import annotations
 
-import csv
-import io
 import json
 import logging
-import math
 import os
-import struct
 import time
-from collections.abc import Sequence
 from dataclasses import replace
-from pathlib import Path
-from typing import IO, Any
+from typing import Any
 
-from planner.errors import OutputExistsError
 from planner.outputs import atomic_write_text
 
 from . import mavlink_messages as mm
@@ -45,30 +32,13 @@ from .camera_feed import CameraFeed
 from .errors import AcquisitionError
 from .link_quality import LinkCounts
 from .monitor_state import CameraEvent, MonitorState
+from .recording_files import RecordingFiles, recording_paths
 from .station_tracker import StationPlan, StationTracker
 
 log = logging.getLogger(__name__)
 
-TLOG_NAME = "flight.tlog"
-CSV_NAME = "triggers.csv"
-SUMMARY_NAME = "monitor.json"
-#: The trigger CSV's header, in order.
-CSV_COLUMNS = (
-    "time_utc_s",
-    "seq",
-    "lat_deg",
-    "lon_deg",
-    "alt_amsl_m",
-    "alt_rel_home_m",
-    "roll_deg",
-    "pitch_deg",
-    "yaw_deg",
-    "source",
-)
 #: Armed and this high above home (m): the vehicle has flown; its next disarming ends the flight.
 FLYING_ALT_REL_HOME_M = 2.0
-#: fsync the tlog at least this often (wall seconds).
-FSYNC_INTERVAL_S = 1.0
 #: A mission that changes again within this many wall seconds is the same change (an upload).
 MISSION_SETTLE_S = 5.0
 
@@ -87,33 +57,6 @@ _STATE_ATTRIBUTES = (
 )
 
 
-def recording_paths(out_dir: str | os.PathLike[str]) -> tuple[Path, Path, Path]:
-    """(tlog, trigger CSV, summary JSON) paths of a recording folder."""
-    folder = Path(out_dir)
-    return folder / TLOG_NAME, folder / CSV_NAME, folder / SUMMARY_NAME
-
-
-def check_recording_target(out_dir: str | os.PathLike[str], *, overwrite: bool) -> Path:
-    """Refuse (:class:`OutputExistsError`) when ``out_dir`` already holds a recording and
-    ``overwrite`` is False; a file in place of the folder is always refused."""
-    folder = Path(out_dir)
-    if folder.exists() and not folder.is_dir():
-        raise OutputExistsError(f"{folder} exists and is not a folder; choose another -o folder")
-    existing = [p for p in recording_paths(folder) if p.exists()]
-    if existing and not overwrite:
-        raise OutputExistsError(
-            f"{folder} already holds a recording ({', '.join(p.name for p in existing)}); "
-            f"pass --overwrite to replace it or choose another -o folder"
-        )
-    return folder
-
-
-def _fmt(value: float | None, decimals: int) -> str:
-    if value is None or not math.isfinite(value):
-        return ""
-    return f"{value:.{decimals}f}"
-
-
 class FlightRecorder:
     """Writes the tlog and the trigger CSV and keeps the :class:`MonitorState`.
 
@@ -130,18 +73,11 @@ class FlightRecorder:
         *,
         overwrite: bool = False,
     ) -> None:
-        folder = check_recording_target(out_dir, overwrite=overwrite)
-        folder.mkdir(parents=True, exist_ok=True)
-        self.out_dir = folder
-        self.tlog_path, self.csv_path, self.summary_path = recording_paths(folder)
-        if self.summary_path.exists():
-            self.summary_path.unlink()
+        self.files = RecordingFiles(out_dir, overwrite=overwrite)
+        self.out_dir = self.files.folder
+        self.tlog_path, self.csv_path, self.summary_path = recording_paths(self.out_dir)
         self.plan = plan
         self.tracker = StationTracker(plan) if plan is not None else None
-        self._tlog: IO[bytes] | None = open(self.tlog_path, "wb")  # noqa: SIM115 - close()
-        self._csv: IO[str] | None = open(self.csv_path, "w", encoding="utf-8", newline="")  # noqa: SIM115
-        self._write_csv_row(CSV_COLUMNS)
-        self._last_fsync_s = time.monotonic()
         self.events: list[CameraEvent] = []
         self.camera = CameraFeed(on_late_join=self._set_late_join)
         self._link = LinkCounts()
@@ -181,12 +117,7 @@ class FlightRecorder:
             return self.state()
         for photo in self.camera.release(force=True):
             self._add_event(photo)
-        for handle in (self._tlog, self._csv):
-            if handle is not None:
-                handle.flush()
-                os.fsync(handle.fileno())
-                handle.close()
-        self._tlog = self._csv = None
+        self.files.close()
         self.closed = True
         state = self.state()
         summary = {
@@ -211,7 +142,7 @@ class FlightRecorder:
             return None
         if rx_time_utc_s is None:
             rx_time_utc_s = float(getattr(msg, "_timestamp", 0.0) or time.time())
-        self._write_tlog(msg, rx_time_utc_s)
+        self.files.write_message(msg, rx_time_utc_s)
         self.messages += 1
         src = (int(msg.get_srcSystem()), int(msg.get_srcComponent()))
         self._link.add(src, int(msg.get_seq()))
@@ -255,17 +186,6 @@ class FlightRecorder:
         elif isinstance(m, mm.CameraTrigger):
             self.camera.on_trigger(m)
         return None
-
-    def _write_tlog(self, msg: Any, rx_time_utc_s: float) -> None:
-        assert self._tlog is not None
-        data = msg.get_msgbuf()
-        stamp = struct.pack(">Q", max(round(rx_time_utc_s * 1e6), 0))
-        self._tlog.write(stamp + bytes(data))  # one write: a record is whole or absent
-        self._tlog.flush()
-        now = time.monotonic()
-        if now - self._last_fsync_s >= FSYNC_INTERVAL_S:
-            os.fsync(self._tlog.fileno())
-            self._last_fsync_s = now
 
     def _on_heartbeat(self, m: mm.Heartbeat, src: tuple[int, int]) -> None:
         if self.vehicle is None and m.is_autopilot and not m.is_ground_station:
@@ -355,33 +275,8 @@ class FlightRecorder:
             self.tracker.extra_photos += 1
         event = replace(photo, station=station)
         self.events.append(event)
-        self._write_csv_row(
-            (
-                _fmt(event.time_utc_s, 6),
-                str(event.seq),
-                _fmt(event.lat_deg, 7),
-                _fmt(event.lon_deg, 7),
-                _fmt(event.alt_amsl_m, 3),
-                _fmt(event.alt_rel_home_m, 3),
-                _fmt(event.roll_deg, 3),
-                _fmt(event.pitch_deg, 3),
-                _fmt(event.yaw_deg, 3),
-                event.source,
-            )
-        )
-        # an event is what the crew cannot get back: make it durable now
-        assert self._tlog is not None
-        os.fsync(self._tlog.fileno())
-        self._last_fsync_s = time.monotonic()
+        self.files.write_event(event)
         return event
-
-    def _write_csv_row(self, row: Sequence[str]) -> None:
-        assert self._csv is not None
-        buffer = io.StringIO()
-        csv.writer(buffer, lineterminator="\n").writerow(row)
-        self._csv.write(buffer.getvalue())  # one write per row: a row is whole or absent
-        self._csv.flush()
-        os.fsync(self._csv.fileno())
 
     # --- link events -------------------------------------------------------------------------
 
@@ -405,9 +300,7 @@ class FlightRecorder:
         self.connected = False
         self.last_drop = detail
         self._link.restart()
-        if self._tlog is not None:
-            self._tlog.flush()
-            os.fsync(self._tlog.fileno())
+        self.files.sync_tlog()
 
     def note_connecting(self) -> None:
         """A new attempt to open the link starts: sequence counts restart with its first

@@ -33,8 +33,9 @@ from pathlib import Path
 from typing import Any
 
 from .errors import LinkError
-from .flight_recorder import CSV_NAME, TLOG_NAME, FlightRecorder, check_recording_target
+from .flight_recorder import FlightRecorder
 from .monitor_state import CameraEvent, MonitorState
+from .recording_files import CSV_NAME, TLOG_NAME, check_recording_target
 from .station_tracker import load_station_plan
 
 log = logging.getLogger(__name__)

@@ -24,11 +24,12 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 from pyproj import Geod
 from tcp_relay import Relay
 
-from acquisition.flight_recorder import CSV_COLUMNS, FlightRecorder
+from acquisition.flight_recorder import FlightRecorder
 from acquisition.link import Link
 from acquisition.link_quality import SeqCounter
 from acquisition.monitor import MonitorResult, StopReason, monitor
 from acquisition.monitor_state import MonitorState
+from acquisition.recording_files import CSV_COLUMNS
 from acquisition.simulator.server import SimulatedVehicle
 from acquisition.station_tracker import StationPlan, load_station_plan
 from acquisition.telemetry.tlog import read_tlog
