@@ -40,6 +40,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import TelemetryError
+from ..mavlink_messages import DEG_PER_E7
 from .gpstime import gps_week_ms_to_utc_s, time_order
 from .model import AttitudeTrack, FlightLog, PositionTrack
 
@@ -463,7 +464,7 @@ def read_autopilot_csv(path: str, text: str, header: list[str]) -> FlightLog:
                 column = layout.lat
                 lat, lon = float(cell(layout.lat)), float(cell(layout.lon))
                 if layout.name == "px4_vehicle_gps_position":
-                    lat, lon = lat * 1e-7, lon * 1e-7
+                    lat, lon = lat * DEG_PER_E7, lon * DEG_PER_E7
                 if lat == 0.0 and lon == 0.0:
                     skipped += 1
                     continue
