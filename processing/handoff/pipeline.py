@@ -82,7 +82,7 @@ def handoff(
 ) -> HandoffResult:
     """Write the ``options.engine`` project for ``images`` into ``work`` (and run it for COLMAP
     with ``options.run``)."""
-    from .report import accuracy_dict, quicklook_dict, report_html, write_json
+    from .report import accuracy_dict, distances_text, quicklook_dict, report_html, write_json
 
     if options.run and options.engine is not Engine.COLMAP:
         raise HandoffInputError(f"--run runs COLMAP only; drop --run for --to {options.engine.value}")
@@ -132,8 +132,11 @@ def handoff(
                 if plan is not None and quick.largest is not None:
                     say("accuracy: control and check points")
                     acc = control_accuracy(plan, quick.largest.views)
-                    report["accuracy"] = accuracy_dict(acc, check_distances(plan, acc), plan.notes)
-                    report["accuracy"]["table_3_2"] = table_3_2(acc)
+                    distances = check_distances(plan, acc)
+                    report["accuracy"] = accuracy_dict(acc, distances, plan.notes)
+                    report["accuracy"]["table_3_2"] = "\n".join(
+                        t for t in (table_3_2(acc), distances_text(distances)) if t
+                    )
         elif options.engine is Engine.NODEODM:
             from .nodeodm import parse_node_url, run_on_node
             from .odm import GCP_TXT, GEO_TXT, write_odm_project
