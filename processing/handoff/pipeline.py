@@ -28,6 +28,9 @@ from .quicklook import DEFAULT_MAX_FEATURES, DEFAULT_MAX_IMAGE_SIZE_PX, QuickLoo
 
 log = logging.getLogger(__name__)
 
+#: Where the largest model goes when the ground control (not GPS) places it.
+PLACED_BY_CONTROL = "sparse/placed_by_control"
+
 
 class Engine(StrEnum):
     COLMAP = "colmap"
@@ -134,6 +137,24 @@ def handoff(
                     acc = control_accuracy(plan, quick.largest.views)
                     distances = check_distances(plan, acc)
                     report["accuracy"] = accuracy_dict(acc, distances, plan.notes)
+                    if quick.georegistration is None:
+                        # No GPS placed the model: the control does, in the frame of the points.
+                        from . import colmap_adapter as colmap
+                        from .block import proj_string
+
+                        s = acc.similarity
+                        placed = colmap.transform_model(quick.largest, s.scale, s.rotation, s.translation_m)
+                        colmap.write_model(placed, stage / PLACED_BY_CONTROL)
+                        report["accuracy"]["model"] = {
+                            "folder": PLACED_BY_CONTROL,
+                            "frame_proj": proj_string(plan.frame),
+                            "z": "surveyed elevation"
+                            if acc.heights_known
+                            else "height above the control points' mean (their elevations are unknown)",
+                        }
+                        report["quicklook"]["messages"] = [
+                            m for m in report["quicklook"]["messages"] if "not georegistered" not in m
+                        ] + [f"the model is placed by the ground control: {PLACED_BY_CONTROL}"]
                     report["accuracy"]["table_3_2"] = "\n".join(
                         t for t in (table_3_2(acc), distances_text(distances)) if t
                     )

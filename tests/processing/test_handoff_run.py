@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import pycolmap
 import pytest
 from shared_data import SHARED_DATA
@@ -101,3 +102,12 @@ def test_copr_kap_is_placed_by_control_alone(tmp_path: Path) -> None:
     for d in acc["check_distances"]:
         assert abs(d["difference_m"]) < 0.025 * d["surveyed_m"] + 0.15
     assert 15.0 < acc["control"]["range_m"] < 25.0  # the kite about 20 m above the targets
+    # The model placed by the control is written, and pycolmap reads it back in the points' frame:
+    # its cameras float range_m above the control points' mean, over the targets.
+    assert acc["model"]["folder"] == "sparse/placed_by_control"
+    placed = pycolmap.Reconstruction(str(tmp_path / "work" / acc["model"]["folder"]))
+    centres = np.array([placed.image(i).projection_center() for i in placed.reg_image_ids()])
+    assert len(centres) == result.report["quicklook"]["frames_registered"]
+    assert np.mean(centres[:, 2]) == pytest.approx(acc["control"]["range_m"], abs=1e-6)
+    assert np.all(np.abs(centres[:, :2]) < 60.0)  # the targets span 46 m around the frame's origin
+    assert not any("not georegistered" in m for m in result.report["quicklook"]["messages"])
