@@ -31,7 +31,7 @@ from numpy.typing import NDArray
 from planner.errors import SfapError
 
 from .gcp import Observation
-from .similarity import Similarity, fit_horizontal_similarity, fit_similarity
+from .similarity import Similarity, SimilarityError, fit_horizontal_similarity, fit_similarity
 
 F64 = NDArray[np.float64]
 
@@ -249,6 +249,9 @@ class PointResidual:
     n_images: int
     marks_rmse_px: float = 0.0
     widest_angle_deg: float = 0.0
+    #: Control points: the horizontal miss when the fit is made without this point (None for
+    #: check points, and with only three control points).
+    left_out_horizontal_m: float | None = None
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -441,14 +444,27 @@ def assess_accuracy(
     src = np.array([tri[n].model_xyz for n in usable_control])
     dst = np.array([ground_xyz_m[n] for n in usable_control])
     centres_model = np.array([v.centre for v in views.values()])
-    if heights_known:
-        sim = fit_similarity(src, dst)
-        fit = SEVEN_PARAMETER_FIT
-    else:
+
+    def place(src: F64, dst: F64) -> tuple[Similarity, str]:
+        if heights_known:
+            return fit_similarity(src, dst), SEVEN_PARAMETER_FIT
         horizontal = fit_horizontal_similarity(
             src, dst[:, :2], up_hint=centres_model.mean(axis=0) - src.mean(axis=0), datum_z=0.0
         )
-        sim, fit = horizontal.similarity, horizontal.describe()
+        return horizontal.similarity, horizontal.describe()
+
+    sim, fit = place(src, dst)
+    # Each control point against the fit made without it (four points or more): a point the
+    # others disagree with stands out (a survey blunder, a wrong target).
+    left_out_m: dict[str, float] = {}
+    if len(usable_control) > MIN_CONTROL_POINTS:
+        for k, n in enumerate(usable_control):
+            keep = np.arange(len(usable_control)) != k
+            try:
+                other, _ = place(src[keep], dst[keep])
+            except SimilarityError:
+                continue
+            left_out_m[n] = float(np.linalg.norm((dst[k] - other.apply(src[k]))[:2]))
     inverse = sim.inverse()
     residuals: list[PointResidual] = []
     placed: dict[str, F64] = {}
@@ -484,6 +500,7 @@ def assess_accuracy(
                     marks_rmse_px=t.marks_rmse_px,
                     n_images=len(errs),
                     widest_angle_deg=t.widest_angle_deg,
+                    left_out_horizontal_m=left_out_m.get(n),
                 )
             )
     # Range: mean height of the registered cameras above the mean surveyed point (ground frame;

@@ -183,7 +183,18 @@ def accuracy_html(acc: dict[str, Any]) -> str:
         rows,
     )
     out += _table(
-        ["point", "role", "dX m", "dY m", "dZ m", "image px", "marks px", "images", "widest ray angle deg"],
+        [
+            "point",
+            "role",
+            "dX m",
+            "dY m",
+            "dZ m",
+            "left out of the fit, horizontal m",
+            "image px",
+            "marks px",
+            "images",
+            "widest ray angle deg",
+        ],
         [
             [
                 p["name"],
@@ -191,6 +202,7 @@ def accuracy_html(acc: dict[str, Any]) -> str:
                 f"{p['dx_m']:.3f}",
                 f"{p['dy_m']:.3f}",
                 _f(p["dz_m"]),
+                _f(p.get("left_out_horizontal_m")),
                 f"{p['image_rmse_px']:.2f}",
                 f"{p['marks_rmse_px']:.2f}",
                 p["n_images"],

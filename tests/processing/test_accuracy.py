@@ -329,3 +329,22 @@ def test_control_far_off_their_survey_is_flagged_and_good_control_is_not() -> No
     gps = {n: v + np.array([*rng.normal(scale=1.5, size=2), 0.0]) for n, v in sc["ground"].items()}
     r = assess_accuracy(ground_xyz_m=gps, **common)
     assert any("marking errors do not explain it" in w for w in r.warnings)
+
+
+@pytest.mark.parametrize("heights", ["known", "unknown"])
+def test_a_control_point_off_its_survey_stands_out_when_left_out(heights: str) -> None:
+    # One control point surveyed 1 m off (a blunder): fitted without it, it misses by 1 m, the
+    # largest left-out miss of all.
+    sc = _scene(0.5, seed=12)
+    names = sc["names"]
+    ground = sc["ground"] if heights == "known" else _zero_heights(sc["ground"])
+    bad = names[2]
+    ground = {n: v + (np.array([0.6, -0.8, 0.0]) if n == bad else 0.0) for n, v in ground.items()}
+    r = assess_accuracy(
+        ground_xyz_m=ground, observations=sc["obs"], views=sc["views"], control=names[:7], check=names[7:]
+    )
+    left_out = {p.name: p.left_out_horizontal_m for p in r.residuals if p.role == "control"}
+    assert left_out[bad] == pytest.approx(1.0, abs=0.15)
+    # The others carry the blunder in their own fits (most near it), but it stands out.
+    assert all(v is not None and v < 0.75 * left_out[bad] for n, v in left_out.items() if n != bad)
+    assert all(p.left_out_horizontal_m is None for p in r.residuals if p.role == "check")
