@@ -6,6 +6,7 @@ import json
 import sys
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from pathlib import Path
 from typing import Any, TypeVar
 
 import click
@@ -20,6 +21,51 @@ json_option = click.option(
 overwrite_option = click.option(
     "--overwrite", is_flag=True, help="Replace existing output files (off: refuse and keep them)."
 )
+
+
+def connect_options(function: F) -> F:
+    """The options of every command that talks to a vehicle, defined once: --connect (the URL
+    carries a serial port's baud rate), --signing-key, --require-signing (MAVLink 2 signing)
+    and --heartbeat-timeout-s."""
+    from acquisition.link import SIGNING_KEY_ENV  # here: only vehicle commands import pymavlink
+
+    options = (
+        click.option(
+            "--connect",
+            "url",
+            required=True,
+            metavar="URL",
+            help=(
+                "How to reach the vehicle: serial:///dev/ttyUSB0:57600 (device:baud), "
+                "udpin://0.0.0.0:14550, udpout://HOST:PORT, tcp://HOST:PORT or tcpin://HOST:PORT."
+            ),
+        ),
+        click.option(
+            "--signing-key",
+            "signing_key_file",
+            type=click.Path(dir_okay=False, path_type=Path),
+            default=None,
+            help=(
+                "MAVLink 2 signing key file: 32 raw bytes, 64 hex digits, or a passphrase "
+                f"(SHA-256, as MAVProxy). Default: ${SIGNING_KEY_ENV} if set, else no signing."
+            ),
+        ),
+        click.option(
+            "--require-signing",
+            is_flag=True,
+            help="Refuse unsigned messages from the vehicle (needs a key).",
+        ),
+        click.option(
+            "--heartbeat-timeout-s",
+            type=click.FloatRange(min=0.1),
+            default=10.0,
+            show_default=True,
+            help="Seconds to wait for the vehicle's heartbeat when connecting.",
+        ),
+    )
+    for option in reversed(options):
+        function = option(function)
+    return function
 
 
 def dumps_json(data: Any) -> str:
