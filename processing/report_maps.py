@@ -18,12 +18,12 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.collections import PolyCollection
 from matplotlib.colors import BoundaryNorm, ListedColormap
 from matplotlib.figure import Figure
-from matplotlib.patches import PathPatch, Rectangle
+from matplotlib.patches import PathPatch
 from matplotlib.text import Text as MplText
 from numpy.typing import NDArray
 
 from planner.maplayout import scale_bar_length_m
-from planner.mapplot import polygon_path
+from planner.mapplot import draw_scale_bar, polygon_path
 
 from .check_result import CheckResult
 from .check_stereo import STEREO_GOOD, STEREO_NONE, STEREO_WEAK, STEREO_WIDE
@@ -101,35 +101,8 @@ class _Map:
             )
 
     def scale_bar(self) -> None:
-        x0, x1, y0, y1 = self.limits
-        length = scale_bar_length_m(x1 - x0)
-        unit = (y1 - y0) / 100.0
-        right = x1 - 4.0 * unit
-        left = right - length
-        bottom = y0 + 3.0 * unit
-        self.ax.add_patch(
-            Rectangle(
-                (left - 2 * unit, bottom - 1.5 * unit),
-                length + 4 * unit,
-                6.5 * unit,
-                facecolor="white",
-                edgecolor="#424242",
-                lw=0.6,
-                alpha=0.9,
-                zorder=9,
-            )
-        )
-        self.ax.plot([left, right], [bottom, bottom], color="black", lw=3, zorder=10, solid_capstyle="butt")
-        label = f"{length / 1000:g} km" if length >= 1000 else f"{length:g} m"
-        self.ax.text(
-            (left + right) / 2,
-            bottom + 1.2 * unit,
-            label,
-            ha="center",
-            va="bottom",
-            fontsize=9,
-            zorder=10,
-        )
+        """The plan map's scale bar (planner.mapplot), so both read alike."""
+        draw_scale_bar(self.ax, scale_bar_length_m(self.limits[1] - self.limits[0]), self.limits)
 
     def png(self) -> bytes:
         self.scale_bar()
