@@ -44,14 +44,15 @@ from dataclasses import dataclass
 from datetime import UTC, datetime
 from fractions import Fraction
 from pathlib import Path
-from typing import Any
-
-import pyexiv2
+from typing import TYPE_CHECKING, Any
 
 from planner.errors import OutputExistsError
 
 from . import jpeg_meta
 from .errors import GeotagError
+
+if TYPE_CHECKING:
+    import pyexiv2
 
 log = logging.getLogger(__name__)
 
@@ -63,10 +64,15 @@ DJI_NS = "http://www.dji.com/drone-dji/1.0/"
 _NAMESPACES_REGISTERED = False
 
 
-def _register_namespaces() -> None:
+def _register_namespaces() -> Any:
+    """pyexiv2, imported on first use (the Python path needs it only for headers it does not
+    handle), quiet, and told the XMP prefixes; returns the module."""
     global _NAMESPACES_REGISTERED
+    import pyexiv2
+
     if _NAMESPACES_REGISTERED:
-        return
+        return pyexiv2
+    pyexiv2.set_log_level(3)  # exiv2 warnings about vendor makernotes are not ours to show
     for namespace, prefix in ((PIX4D_CAMERA_NS, "Camera"), (DJI_NS, "drone-dji")):
         try:
             pyexiv2.registerNs(namespace, prefix)
@@ -74,9 +80,8 @@ def _register_namespaces() -> None:
             # Already known to exiv2 (registered by a file read earlier): that is fine.
             log.debug("XMP namespace %s already registered", namespace)
     _NAMESPACES_REGISTERED = True
+    return pyexiv2
 
-
-pyexiv2.set_log_level(3)  # exiv2 warnings about vendor makernotes are not ours to show
 
 _GPS_KEYS = (
     "Exif.GPSInfo.GPSVersionID",
@@ -338,8 +343,9 @@ def _float(text: str | None) -> float | None:
 
 
 def _open(data: bytes, path: str | os.PathLike[str]) -> pyexiv2.ImageData:
+    exiv2 = _register_namespaces()
     try:
-        return pyexiv2.ImageData(data)
+        return exiv2.ImageData(data)
     except (RuntimeError, ValueError, OSError) as error:
         raise GeotagError(f"{path}: not a readable image ({error}); remove it or replace it") from error
 
@@ -364,7 +370,6 @@ def _read_file_maps(
 ) -> tuple[dict[str, Any], dict[str, Any], int | None, int | None]:
     """The EXIF and XMP maps and the pixel size of one JPEG, from its metadata segments only.
     Raises :class:`GeotagError` when the file is unreadable."""
-    _register_namespaces()
     with open(path, "rb") as handle:
         fd = handle.fileno()
         head = os.pread(fd, 2, 0)
@@ -377,7 +382,7 @@ def _read_file_maps(
             log.debug("%s: read by exiv2 (%s)", path, error)
     try:
         # From the path, exiv2 reads the metadata segments only (5x faster than the whole file).
-        image = pyexiv2.Image(os.fspath(path))
+        image = _register_namespaces().Image(os.fspath(path))
     except (RuntimeError, ValueError, OSError) as error:
         raise GeotagError(f"{path}: not a readable image ({error}); remove or replace it") from error
     try:
@@ -989,7 +994,6 @@ def write_geotags(
         workers = min(4, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else 1)
     if workers < 1:
         raise GeotagError(f"workers is {workers}; give 1 or more")
-    _register_namespaces()
     _umask()  # read (it is set and reset) before any thread creates a file
     results: list[GeotagWriteResult] = []
     if workers == 1 or len(job_list) < 2:

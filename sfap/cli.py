@@ -2,7 +2,8 @@
 ``sfap/commands`` and are imported only when run (pymavlink and rasterio are slow to import).
 
 Errors are mapped to exit codes here and nowhere else: 0 success, 1 the operation failed or a
-check found problems, 2 usage (bad options or bad input files).
+check found problems (a typed error, or a result that reports problems: frames geotag left
+untagged), 2 usage (bad options or bad input files).
 """
 
 from __future__ import annotations
@@ -37,6 +38,15 @@ def _debug_detail() -> None:
     import logging  # not at import: `sfap --help` does without it
 
     logging.getLogger("sfap").debug("error detail", exc_info=True)
+
+
+def _exit_code_of(result: Any) -> int:
+    """The exit code of a result a command returned: 1 when geotag left frames untagged (the
+    command has listed them), else 0."""
+    results = sys.modules.get("acquisition.geotag_results")  # loaded when geotag ran
+    if results is not None and isinstance(result, results.GeotagResult):
+        return 1 if result.untagged else 0
+    return 0
 
 
 def _help_width() -> int:
@@ -86,7 +96,7 @@ class LazyGroup(click.Group):
 
     def invoke(self, ctx: click.Context) -> Any:
         try:
-            return super().invoke(ctx)
+            result = super().invoke(ctx)
         except SfapError as error:
             _debug_detail()
             click.echo(f"error: {error}", err=True)
@@ -100,6 +110,10 @@ class LazyGroup(click.Group):
         except KeyboardInterrupt:
             click.echo("interrupted", err=True)
             ctx.exit(130)
+        code = _exit_code_of(result)
+        if code:
+            ctx.exit(code)
+        return result
 
 
 def _print_version(ctx: click.Context, _param: click.Parameter, value: bool) -> None:
