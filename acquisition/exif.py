@@ -854,12 +854,6 @@ def _write_file(
                 log.debug("%s: tags written by exiv2 (%s)", name, error)
         if header is None:
             header = _compose_header(split, name, change)
-        if check_end and not _has_eoi(fd, split, name):
-            warnings.append(
-                f"{name}: the image data has no end marker (EOI): the file was cut short or "
-                f"damaged on the card; decoders still read it, tags written, image data copied "
-                f"unchanged"
-            )
         if atomic or same:
             if not (overwrite or same) and target.exists():
                 raise OutputExistsError(f"{target} exists; pass --overwrite to replace it")
@@ -890,6 +884,13 @@ def _write_file(
                     with contextlib.suppress(FileNotFoundError):
                         target.unlink()
                 raise
+        # After the copy, which brought the file's end into the page cache: one 2-byte read.
+        if check_end and not _has_eoi(fd, split, name):
+            warnings.append(
+                f"{name}: the image data has no end marker (EOI): the file was cut short or "
+                f"damaged on the card; decoders still read it, tags written, image data copied "
+                f"unchanged"
+            )
     for text in warnings:
         log.warning("%s", text)
     return target, warnings

@@ -6,6 +6,7 @@ from __future__ import annotations
 import os
 import re
 from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -105,16 +106,26 @@ class Frame:
     error: str | None = None
 
 
+def _read_frame(path: Path) -> Frame:
+    try:
+        return Frame(path, tags=exif.read_tags(path))
+    except (GeotagError, OSError) as error:
+        return Frame(path, error=str(error))
+
+
+#: Frames read at once: reading a header is mostly waiting for the disk (the GIL is released),
+#: so a few threads overlap the waits of a card that is not in the page cache.
+READ_THREADS = 4
+
+
 def read_frames(paths: Sequence[Path], progress: Callable[[int], None]) -> list[Frame]:
-    """The tags of every image (header segments only); an unreadable one keeps its reason.
-    ``progress(n)`` after each."""
+    """The tags of every image (header segments only), in the order of ``paths``; an unreadable
+    one keeps its reason. ``progress(n)`` after each."""
     frames: list[Frame] = []
-    for done, path in enumerate(paths, start=1):
-        try:
-            frames.append(Frame(path, tags=exif.read_tags(path)))
-        except (GeotagError, OSError) as error:
-            frames.append(Frame(path, error=str(error)))
-        progress(done)
+    with ThreadPoolExecutor(max_workers=READ_THREADS) as pool:
+        for done, frame in enumerate(pool.map(_read_frame, paths), start=1):
+            frames.append(frame)
+            progress(done)
     return frames
 
 
