@@ -422,6 +422,25 @@ def test_fast_write_reads_as_exiv2s_write_in_exiftool(tmp_path: Path, tag: exif.
     assert any("MakerNotes:" in k or k.startswith("Canon") for k in read_fast[-1])
     for k in (0, len(sources) - 1):
         assert _validate(fast[k]) == _validate(slow[k])
+    # The old fix is zeroed, not left behind unreferenced: one position per file.
+    import struct
+
+    for source, out in zip(sources, fast, strict=True):
+        old = exif.read_tags(source)
+        if old.gps_lat_deg is None:
+            continue
+        data = source.read_bytes()
+        order = (
+            ">" if data[data.index(b"Exif\x00\x00") + 6 : data.index(b"Exif\x00\x00") + 8] == b"MM" else "<"
+        )
+        image = pyexiv2.Image(str(source))
+        try:
+            text = image.read_exif()["Exif.GPSInfo.GPSLatitude"]
+        finally:
+            image.close()
+        numbers = [int(v) for part in text.split() for v in part.split("/")]
+        raw = struct.pack(f"{order}{len(numbers)}I", *numbers)
+        assert raw in data and raw not in out.read_bytes(), source.name
 
 
 def test_header_only_exiv2_write_equals_exiv2_on_the_whole_file() -> None:
