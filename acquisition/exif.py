@@ -14,7 +14,10 @@ firmware), ``AbsoluteAltitude`` and ``RelativeAltitude``: OpenDroneMap and Metas
 XMP position over EXIF, so leaving the old ones would undo the geotag (REFERENCES.md section 4).
 
 Writing is lossless and reads each file once: only the header segments (everything before the
-first SOS marker) are read into memory and rewritten by exiv2 (through pyexiv2); the rest of the
+first SOS marker) are read into memory and rewritten, in Python by :mod:`acquisition.jpeg_meta`
+(a new GPS IFD appended to the TIFF block, nothing else moved, so maker-note offsets stay valid;
+XMP edited in its text) or, for a header that module does not handle, by exiv2 (pyexiv2); reading
+takes the same route. The rest of the
 file, the entropy-coded image data (:func:`compressed_image_data`) and anything after it, is
 copied by the kernel (``os.copy_file_range``) and is byte-identical before and after, which the
 tests check. :func:`write_geotags` writes many frames at once. A frame whose image data has no
@@ -33,6 +36,7 @@ import logging
 import math
 import os
 import re
+import struct
 import tempfile
 from collections.abc import Callable, Iterable
 from concurrent.futures import ThreadPoolExecutor
@@ -40,13 +44,15 @@ from dataclasses import dataclass
 from datetime import UTC, datetime
 from fractions import Fraction
 from pathlib import Path
-from typing import Any
-
-import pyexiv2
+from typing import TYPE_CHECKING, Any
 
 from planner.errors import OutputExistsError
 
+from . import jpeg_meta
 from .errors import GeotagError
+
+if TYPE_CHECKING:
+    import pyexiv2
 
 log = logging.getLogger(__name__)
 
@@ -58,10 +64,15 @@ DJI_NS = "http://www.dji.com/drone-dji/1.0/"
 _NAMESPACES_REGISTERED = False
 
 
-def _register_namespaces() -> None:
+def _register_namespaces() -> Any:
+    """pyexiv2, imported on first use (the Python path needs it only for headers it does not
+    handle), quiet, and told the XMP prefixes; returns the module."""
     global _NAMESPACES_REGISTERED
+    import pyexiv2
+
     if _NAMESPACES_REGISTERED:
-        return
+        return pyexiv2
+    pyexiv2.set_log_level(3)  # exiv2 warnings about vendor makernotes are not ours to show
     for namespace, prefix in ((PIX4D_CAMERA_NS, "Camera"), (DJI_NS, "drone-dji")):
         try:
             pyexiv2.registerNs(namespace, prefix)
@@ -69,9 +80,8 @@ def _register_namespaces() -> None:
             # Already known to exiv2 (registered by a file read earlier): that is fine.
             log.debug("XMP namespace %s already registered", namespace)
     _NAMESPACES_REGISTERED = True
+    return pyexiv2
 
-
-pyexiv2.set_log_level(3)  # exiv2 warnings about vendor makernotes are not ours to show
 
 _GPS_KEYS = (
     "Exif.GPSInfo.GPSVersionID",
@@ -333,8 +343,9 @@ def _float(text: str | None) -> float | None:
 
 
 def _open(data: bytes, path: str | os.PathLike[str]) -> pyexiv2.ImageData:
+    exiv2 = _register_namespaces()
     try:
-        return pyexiv2.ImageData(data)
+        return exiv2.ImageData(data)
     except (RuntimeError, ValueError, OSError) as error:
         raise GeotagError(f"{path}: not a readable image ({error}); remove it or replace it") from error
 
@@ -359,14 +370,19 @@ def _read_file_maps(
 ) -> tuple[dict[str, Any], dict[str, Any], int | None, int | None]:
     """The EXIF and XMP maps and the pixel size of one JPEG, from its metadata segments only.
     Raises :class:`GeotagError` when the file is unreadable."""
-    _register_namespaces()
     with open(path, "rb") as handle:
-        head = handle.read(2)
-    if head != b"\xff\xd8":
-        raise GeotagError(f"{path}: not a JPEG file (no SOI marker); remove it from the folder")
+        fd = handle.fileno()
+        head = os.pread(fd, 2, 0)
+        if head != b"\xff\xd8":
+            raise GeotagError(f"{path}: not a JPEG file (no SOI marker); remove it from the folder")
+        try:  # the header segments only, read and parsed here (exiv2 for what this does not handle)
+            split = _split_header(lambda offset, n: os.pread(fd, n, offset), os.fstat(fd).st_size, str(path))
+            return jpeg_meta.header_maps(split.header)
+        except (GeotagError, jpeg_meta.UnsupportedHeaderError, UnicodeDecodeError, struct.error) as error:
+            log.debug("%s: read by exiv2 (%s)", path, error)
     try:
         # From the path, exiv2 reads the metadata segments only (5x faster than the whole file).
-        image = pyexiv2.Image(os.fspath(path))
+        image = _register_namespaces().Image(os.fspath(path))
     except (RuntimeError, ValueError, OSError) as error:
         raise GeotagError(f"{path}: not a readable image ({error}); remove or replace it") from error
     try:
@@ -748,6 +764,16 @@ def _geotag_change(tag: GeoTag) -> Any:
     return change
 
 
+def _geotag_fast(tag: GeoTag) -> Callable[[bytes], bytes]:
+    """What :func:`_geotag_change` does, without exiv2: a new GPS IFD, the XMP edited in place."""
+    gps = {key: value for key, value in _exif_gps_values(tag).items() if value is not None}
+
+    def fast(header: bytes) -> bytes:
+        return jpeg_meta.patch_header(header, gps, lambda xmp: _xmp_values(tag, xmp))
+
+    return fast
+
+
 def _strip_change(attitude: bool) -> Any:
     def change(image: pyexiv2.ImageData, exif: dict[str, Any], xmp: dict[str, Any]) -> None:
         gps_keys = {key: None for key in exif if key.startswith("Exif.GPSInfo.")}
@@ -813,8 +839,12 @@ def _write_file(
     overwrite: bool,
     atomic: bool,
     check_end: bool = True,
+    fast: Callable[[bytes], bytes] | None = None,
 ) -> tuple[Path, list[str]]:
-    """``src`` with its header changed by ``change`` written to ``dst``; (path, warnings)."""
+    """``src`` with its header changed by ``change`` written to ``dst``; (path, warnings).
+
+    ``fast(header)``, when given, makes the same change without exiv2 (:mod:`acquisition.jpeg_meta`);
+    a header it does not handle goes to exiv2."""
     name = str(src)
     warnings: list[str] = []
     same = os.path.abspath(src) == os.path.abspath(dst)
@@ -823,13 +853,14 @@ def _write_file(
         fd = source.fileno()
         size = os.fstat(fd).st_size
         split = _split_header(lambda offset, n: os.pread(fd, n, offset), size, name)
-        header = _compose_header(split, name, change)
-        if check_end and not _has_eoi(fd, split, name):
-            warnings.append(
-                f"{name}: the image data has no end marker (EOI): the file was cut short or "
-                f"damaged on the card; decoders still read it, tags written, image data copied "
-                f"unchanged"
-            )
+        header = None
+        if fast is not None:
+            try:
+                header = fast(split.header)
+            except (jpeg_meta.UnsupportedHeaderError, UnicodeDecodeError, struct.error, ValueError) as error:
+                log.debug("%s: tags written by exiv2 (%s)", name, error)
+        if header is None:
+            header = _compose_header(split, name, change)
         if atomic or same:
             if not (overwrite or same) and target.exists():
                 raise OutputExistsError(f"{target} exists; pass --overwrite to replace it")
@@ -860,6 +891,13 @@ def _write_file(
                     with contextlib.suppress(FileNotFoundError):
                         target.unlink()
                 raise
+        # After the copy, which brought the file's end into the page cache: one 2-byte read.
+        if check_end and not _has_eoi(fd, split, name):
+            warnings.append(
+                f"{name}: the image data has no end marker (EOI): the file was cut short or "
+                f"damaged on the card; decoders still read it, tags written, image data copied "
+                f"unchanged"
+            )
     for text in warnings:
         log.warning("%s", text)
     return target, warnings
@@ -900,7 +938,9 @@ def write_geotag(
     moves it into place at once (:func:`planner.outputs.staged_output_dir`).
     """
     del check_image_data
-    path, _ = _write_file(src, dst, _geotag_change(tag), overwrite=overwrite, atomic=atomic)
+    path, _ = _write_file(
+        src, dst, _geotag_change(tag), overwrite=overwrite, atomic=atomic, fast=_geotag_fast(tag)
+    )
     return path
 
 
@@ -931,7 +971,12 @@ class GeotagWriteResult:
 def _run_job(job: GeotagJob, overwrite: bool, atomic: bool) -> GeotagWriteResult:
     try:
         _, warnings = _write_file(
-            job.src, job.dst, _geotag_change(job.tag), overwrite=overwrite, atomic=atomic
+            job.src,
+            job.dst,
+            _geotag_change(job.tag),
+            overwrite=overwrite,
+            atomic=atomic,
+            fast=_geotag_fast(job.tag),
         )
     except (GeotagError, OSError) as error:
         return GeotagWriteResult(src=job.src, dst=job.dst, error=str(error))
@@ -957,7 +1002,6 @@ def write_geotags(
         workers = min(4, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else 1)
     if workers < 1:
         raise GeotagError(f"workers is {workers}; give 1 or more")
-    _register_namespaces()
     _umask()  # read (it is set and reset) before any thread creates a file
     results: list[GeotagWriteResult] = []
     if workers == 1 or len(job_list) < 2:

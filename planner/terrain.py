@@ -11,18 +11,19 @@ import logging
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, ClassVar, Self
+from typing import TYPE_CHECKING, Any, ClassVar, Self
 
 import numpy as np
-import rasterio
-import rasterio.io
-import rasterio.windows
 from numpy.typing import ArrayLike, NDArray
 from pyproj import CRS, Transformer
-from rasterio.errors import RasterioIOError
 
 from .errors import SfapError, TerrainError
 from .geo import LocalFrame
+
+if TYPE_CHECKING:  # rasterio is imported when a DEM is read: a plan without one does without it
+    import rasterio
+    import rasterio.io
+    import rasterio.windows
 
 logger = logging.getLogger(__name__)
 
@@ -75,6 +76,9 @@ class Dem:
         east, north in WGS84 degrees) reads only the part of a large DEM that covers them.
         ``fields`` are passed on to the class (a subclass's extra fields).
         """
+        import rasterio
+        from rasterio.errors import RasterioIOError
+
         target = Path(path)
         try:
             with rasterio.open(target) as dataset:
@@ -195,6 +199,8 @@ def _window_for(
     error: type[SfapError],
 ) -> rasterio.windows.Window:
     """The window of ``dataset`` covering lon/lat bounds (one cell of margin), or GroundError."""
+    import rasterio.windows
+
     west, south, east, north = bounds_lonlat
     if not (west < east and south < north):
         raise error(f"bounds_lonlat {bounds_lonlat} are empty; expected (west, south, east, north)")

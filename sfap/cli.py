@@ -2,7 +2,8 @@
 ``sfap/commands`` and are imported only when run (pymavlink and rasterio are slow to import).
 
 Errors are mapped to exit codes here and nowhere else: 0 success, 1 the operation failed or a
-check found problems, 2 usage (bad options or bad input files).
+check found problems (a typed error, or a result that reports problems: frames geotag left
+untagged), 2 usage (bad options or bad input files).
 """
 
 from __future__ import annotations
@@ -34,7 +35,9 @@ COMMANDS: dict[str, tuple[str, str]] = {
 
 @runtime_checkable
 class Verdict(Protocol):
-    """What a command that judges returns (``sfap check``: a CheckResult): exit 1 unless it passed."""
+    """What a command that judges returns (``sfap check``: a CheckResult; ``sfap geotag``: a
+    GeotagResult, passed when every frame was tagged): exit 1 unless it passed, after the command
+    has presented what it found."""
 
     passed: bool
 

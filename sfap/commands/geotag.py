@@ -10,17 +10,10 @@ from pathlib import Path
 
 import click
 
-from acquisition.geotag import (
-    FrameStatus,
-    GeotagOptions,
-    GeotagResult,
-    SyncPoint,
-    geotag_images,
-    parse_sync_position,
-    parse_sync_time,
-    prepare_images,
-    report_json,
-)
+from acquisition.geotag import geotag_images
+from acquisition.geotag_frames import prepare_images
+from acquisition.geotag_offset import SyncPoint, parse_sync_position, parse_sync_time
+from acquisition.geotag_results import FrameStatus, GeotagOptions, GeotagResult, report_json
 from acquisition.telemetry import read_log
 from planner.errors import InputError
 
@@ -74,7 +67,6 @@ def _log_progress(enabled: bool) -> Iterator[Callable[[int, int], None] | None]:
 )
 @click.option(
     "-o",
-    "--out",
     "--output",
     "out_dir",
     required=True,
@@ -141,9 +133,7 @@ def _log_progress(enabled: bool) -> Iterator[Callable[[int, int], None] | None]:
 @overwrite_option
 @json_option
 @click.option("--no-progress", is_flag=True, help="No progress bar on stderr.")
-@click.pass_context
 def command(
-    ctx: click.Context,
     images: Path,
     log_path: Path,
     out_dir: Path,
@@ -158,7 +148,7 @@ def command(
     overwrite: bool,
     as_json: bool,
     no_progress: bool,
-) -> None:
+) -> GeotagResult:
     """Geotag the JPEG frames under IMAGES from the flight's own log, losslessly.
 
     Frames are matched to the log's camera events by aligning their time sequences (dropped
@@ -228,8 +218,7 @@ def command(
         click.echo(report_json(result), nl=False)
     else:
         _present(result)
-    if result.untagged:
-        ctx.exit(1)
+    return result  # sfap/cli.py: exit 1 when frames were left untagged
 
 
 def _present(result: GeotagResult) -> None:

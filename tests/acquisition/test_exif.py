@@ -363,20 +363,162 @@ def _exiv2_on_whole_file(data: bytes, tag: exif.GeoTag) -> bytes:
     return out
 
 
-@pytest.mark.parametrize(
-    "source",
-    [
-        GARFIELD_FIRST,  # Parrot Sequoia: EXIF with GPS, Pix4D XMP
-        sorted(GARFIELD.glob("*.JPG"))[-1],
-        sorted(COPR.glob("*.jpg"))[0],  # Canon EOS: maker notes, no GPS, no XMP
-    ],
-    ids=lambda p: p.name,
-)
-def test_header_only_write_equals_exiv2_on_the_whole_file(tmp_path: Path, source: Path) -> None:
+def _exiftool_all(paths: list[Path]) -> list[dict[str, object]]:
+    """Every tag exiftool reads (all groups, binary values such as thumbnails and maker-note
+    blocks as base64), minus the file system's and the layout's own (offsets, the XMP toolkit
+    name exiv2 stamps on a packet it creates)."""
+    import json
+    import subprocess
+
+    exiftool = shutil.which("exiftool")
+    assert exiftool is not None, "exiftool is needed (Debian: libimage-exiftool-perl)"
+    done = subprocess.run(
+        [exiftool, "-j", "-a", "-G1", "-n", "-u", "-b", *map(str, paths)],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    skip_groups = ("System:", "File:", "ExifTool:", "Composite:")
+    return [
+        {
+            k: v
+            for k, v in record.items()
+            if not k.startswith(skip_groups)
+            and k not in ("SourceFile", "XMP-x:XMPToolkit")
+            and not k.endswith(("Offset", "Offsets"))
+        }
+        for record in json.loads(done.stdout)
+    ]
+
+
+def _validate(path: Path) -> str:
+    import subprocess
+
+    done = subprocess.run(
+        ["exiftool", "-validate", "-warning", "-a", "-G1", str(path)], capture_output=True, text=True
+    )
+    return done.stdout.replace(str(path), "FILE")
+
+
+FAST_TAGS = [_tag(alt_rel_home_m=80.0), exif.GeoTag(lat_deg=41.4, lon_deg=-81.6, xy_accuracy_m=1.5)]
+
+
+@pytest.mark.parametrize("tag", FAST_TAGS, ids=["full", "position-only"])
+def test_fast_write_reads_as_exiv2s_write_in_exiftool(tmp_path: Path, tag: exif.GeoTag) -> None:
+    """Every real frame (Sequoia: EXIF GPS and Pix4D XMP; Canon: maker notes, thumbnail, no XMP)
+    written by the Python path reads, in exiftool, tag for tag as exiv2's write of the whole file;
+    exiftool's validation finds the same; the image data is the source's."""
+    sources = sorted(GARFIELD.glob("*.JPG")) + sorted(COPR.glob("*.jpg"))
+    fast, slow = [], []
+    for k, source in enumerate(sources):
+        fast.append(exif.write_geotag(source, tmp_path / f"fast_{k}.jpg", tag))
+        slow.append(tmp_path / f"exiv2_{k}.jpg")
+        slow[-1].write_bytes(_exiv2_on_whole_file(source.read_bytes(), tag))
+        assert fast[-1].read_bytes() != slow[-1].read_bytes()  # the Python path wrote it, not exiv2
+        assert exif.compressed_image_data(fast[-1]) == exif.compressed_image_data(source)
+    read_fast, read_slow = _exiftool_all(fast), _exiftool_all(slow)
+    for source, a, b in zip(sources, read_fast, read_slow, strict=True):
+        assert a == b, source.name
+    assert any("MakerNotes:" in k or k.startswith("Canon") for k in read_fast[-1])
+    for k in (0, len(sources) - 1):
+        assert _validate(fast[k]) == _validate(slow[k])
+    # The old fix is zeroed, not left behind unreferenced: one position per file.
+    import struct
+
+    for source, out in zip(sources, fast, strict=True):
+        old = exif.read_tags(source)
+        if old.gps_lat_deg is None:
+            continue
+        data = source.read_bytes()
+        order = (
+            ">" if data[data.index(b"Exif\x00\x00") + 6 : data.index(b"Exif\x00\x00") + 8] == b"MM" else "<"
+        )
+        image = pyexiv2.Image(str(source))
+        try:
+            text = image.read_exif()["Exif.GPSInfo.GPSLatitude"]
+        finally:
+            image.close()
+        numbers = [int(v) for part in text.split() for v in part.split("/")]
+        raw = struct.pack(f"{order}{len(numbers)}I", *numbers)
+        assert raw in data and raw not in out.read_bytes(), source.name
+
+
+def test_header_only_exiv2_write_equals_exiv2_on_the_whole_file() -> None:
+    """The exiv2 path (files the Python path does not handle) on the header alone gives the bytes
+    exiv2 gives on the whole file."""
+    for source in (GARFIELD_FIRST, sorted(COPR.glob("*.jpg"))[0]):
+        tag = _tag(alt_rel_home_m=80.0)
+        assert exif.geotag_bytes(source.read_bytes(), tag) == _exiv2_on_whole_file(source.read_bytes(), tag)
+
+
+def test_files_the_fast_path_does_not_handle_go_to_exiv2(tmp_path: Path) -> None:
+    """No EXIF segment at all, and XMP properties in a structure: written by exiv2, byte for byte."""
+    plain = tmp_path / "plain.jpg"
+    Image.fromarray(np.zeros((16, 16, 3), np.uint8)).save(plain, format="JPEG")
+    structured = make_jpeg(tmp_path / "seq.jpg")
+    data = structured.read_bytes()
+    packet = (
+        b'<?xpacket begin="" id="W5M0MpCehiHzreSzNTczkc9d"?><x:xmpmeta xmlns:x="adobe:ns:meta/">'
+        b'<rdf:RDF xmlns:rdf="http://www.w3.org/1999/02/22-rdf-syntax-ns#"><rdf:Description rdf:about="" '
+        b'xmlns:Camera="http://pix4d.com/camera/1.0/"><Camera:Yaw><rdf:Seq><rdf:li>1</rdf:li></rdf:Seq>'
+        b'</Camera:Yaw></rdf:Description></rdf:RDF></x:xmpmeta><?xpacket end="w"?>'
+    )
+    payload = b"http://ns.adobe.com/xap/1.0/\x00" + packet
+    segment = b"\xff\xe1" + (len(payload) + 2).to_bytes(2, "big") + payload
+    structured.write_bytes(data[:2] + segment + data[2:])
+    for source in (plain, structured):
+        out = exif.write_geotag(source, tmp_path / f"out_{source.name}", _tag())
+        assert out.read_bytes() == _exiv2_on_whole_file(source.read_bytes(), _tag())
+
+
+def test_xmp_element_form_and_new_namespace(tmp_path: Path) -> None:
+    """DJI-style XMP with properties as elements, no Pix4D namespace yet: the elements are
+    replaced, the namespace declared, and exiftool reads it as it reads exiv2's write."""
+    base = make_jpeg(tmp_path / "dji.jpg").read_bytes()
+    packet = (
+        '<?xpacket begin="\ufeff" id="W5M0MpCehiHzreSzNTczkc9d"?>\n<x:xmpmeta xmlns:x="adobe:ns:meta/">\n'
+        ' <rdf:RDF xmlns:rdf="http://www.w3.org/1999/02/22-rdf-syntax-ns#">\n'
+        '  <rdf:Description rdf:about="DJI Meta Data" xmlns:drone-dji="http://www.dji.com/drone-dji/1.0/">\n'
+        "   <drone-dji:GpsLatitude>+10.000000</drone-dji:GpsLatitude>\n"
+        "   <drone-dji:GpsLongtitude>+20.000000</drone-dji:GpsLongtitude>\n"
+        "   <drone-dji:AbsoluteAltitude>+100.00</drone-dji:AbsoluteAltitude>\n"
+        "   <drone-dji:RelativeAltitude>+30.00</drone-dji:RelativeAltitude>\n"
+        "   <drone-dji:GimbalPitchDegree>-90.00</drone-dji:GimbalPitchDegree>\n"
+        "  </rdf:Description>\n </rdf:RDF>\n</x:xmpmeta>\n" + " " * 200 + '\n<?xpacket end="w"?>'
+    ).encode()
+    payload = b"http://ns.adobe.com/xap/1.0/\x00" + packet
+    src = tmp_path / "dji_xmp.jpg"
+    src.write_bytes(base[:2] + b"\xff\xe1" + (len(payload) + 2).to_bytes(2, "big") + payload + base[2:])
     tag = _tag(alt_rel_home_m=80.0)
-    exif.write_geotag(source, tmp_path / "out.jpg", tag)
-    assert (tmp_path / "out.jpg").read_bytes() == _exiv2_on_whole_file(source.read_bytes(), tag)
-    assert exif.geotag_bytes(source.read_bytes(), tag) == (tmp_path / "out.jpg").read_bytes()
+    fast = exif.write_geotag(src, tmp_path / "fast.jpg", tag)
+    slow = tmp_path / "exiv2.jpg"
+    slow.write_bytes(_exiv2_on_whole_file(src.read_bytes(), tag))
+    assert fast.read_bytes() != slow.read_bytes()
+    read_fast, read_slow = _exiftool_all([fast, slow])
+    # exiv2 rewrites the packet and drops the description's rdf:about; the text edit keeps it.
+    assert read_fast.pop("XMP-rdf:About") == "DJI Meta Data" and "XMP-rdf:About" not in read_slow
+    assert read_fast == read_slow
+    assert read_fast["XMP-drone-dji:GPSLatitude"] == pytest.approx(-33.8567844)
+    assert read_fast["XMP-drone-dji:GPSLongtitude"] == pytest.approx(-151.2152967)
+    assert read_fast["XMP-drone-dji:RelativeAltitude"] == "+80.000"
+    assert read_fast["XMP-drone-dji:GimbalPitchDegree"] == -90.0
+    assert read_fast["XMP-Camera:Yaw"] == 271.5
+
+
+def test_fast_reader_agrees_with_exiv2_on_real_frames() -> None:
+    """read_tags and the camera tags from the Python reader equal exiv2's (pyexiv2's maps) on
+    every real frame."""
+    for source in sorted(GARFIELD.glob("*.JPG")) + sorted(COPR.glob("*.jpg")):
+        image = pyexiv2.Image(str(source))
+        try:
+            exif_map, xmp_map = image.read_exif(), image.read_xmp()
+            width, height = image.get_pixel_width(), image.get_pixel_height()
+        finally:
+            image.close()
+        tags, camera = exif.read_tags_and_camera(source)
+        assert tags == exif.tags_from_maps(str(source), exif_map, xmp_map, width_px=width, height_px=height)
+        assert camera == exif.camera_tags_from_maps(exif_map, xmp_map)
+        assert tags.capture_time_s is not None
 
 
 def test_bytes_after_the_header_are_the_source_bytes(tmp_path: Path) -> None:

@@ -17,7 +17,8 @@ import numpy as np
 import pytest
 from survey_frames import write_frame
 
-from acquisition.geotag import FrameStatus, geotag_images
+from acquisition.geotag import geotag_images
+from acquisition.geotag_results import FrameStatus
 from acquisition.simulator.server import SimulatedVehicle
 from acquisition.telemetry import read_log
 from planner.geo import LocalFrame
