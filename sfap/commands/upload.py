@@ -14,14 +14,9 @@ import click
 
 from acquisition.errors import LinkError
 from acquisition.link import SIGNING_KEY_ENV, Link, load_signing_key
-from acquisition.transfer import (
-    DEFAULT_RETRIES,
-    DEFAULT_TIMEOUT_S,
-    MissionInputError,
-    MissionVerificationError,
-    TransferPhase,
-    upload_mission,
-)
+from acquisition.mission_protocol import DEFAULT_RETRIES, DEFAULT_TIMEOUT_S, TransferPhase
+from acquisition.transfer import upload_mission
+from acquisition.transfer_outcome import MissionInputError, MissionVerificationError
 from planner.errors import MissionFileError, MissionValidationError
 from planner.mission import validate_mission
 

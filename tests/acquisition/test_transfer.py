@@ -31,18 +31,15 @@ from acquisition.mavlink_items import (
     to_mission_item_int,
 )
 from acquisition.simulator.server import FaultConfig, SimulatedVehicle
-from acquisition.transfer import (
+from acquisition.mission_protocol import TransferPhase
+from acquisition.readback import verify_readback
+from acquisition.transfer import clear_mission, download_mission, downloaded_mission, upload_mission
+from acquisition.transfer_outcome import (
     MissionState,
     MissionTooLargeError,
     MissionTransferError,
     MissionVerificationError,
-    TransferPhase,
-    clear_mission,
     describe_mission_result,
-    download_mission,
-    downloaded_mission,
-    upload_mission,
-    verify_readback,
 )
 from planner.errors import MissionValidationError
 from planner.mission import (
