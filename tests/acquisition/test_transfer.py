@@ -30,9 +30,9 @@ from acquisition.mavlink_items import (
     from_mission_item,
     to_mission_item_int,
 )
-from acquisition.simulator.server import FaultConfig, SimulatedVehicle
 from acquisition.mission_protocol import TransferPhase
 from acquisition.readback import verify_readback
+from acquisition.simulator.server import FaultConfig, SimulatedVehicle
 from acquisition.transfer import clear_mission, download_mission, downloaded_mission, upload_mission
 from acquisition.transfer_outcome import (
     MissionState,
