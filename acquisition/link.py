@@ -69,6 +69,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 from planner.errors import InputError
 from planner.mission import Autopilot, VehicleType
 
+from .clock import WALL_CLOCK, Clock, WallClock
 from .errors import LinkError
 
 log = logging.getLogger(__name__)
@@ -253,8 +254,11 @@ class Link:
         signing_key: bytes | None,
         require_signing: bool,
         on_message: MessageObserver | None = None,
+        clock: Clock = WALL_CLOCK,
     ) -> None:
         self.url = url.text
+        self.clock = clock
+        self._party: object = None
         self._on_message = on_message
         self._parsed = url
         self._conn = conn
@@ -264,7 +268,7 @@ class Link:
         self.require_signing = require_signing
         self.refused_unsigned = 0
         self.bad_data = 0
-        self.last_heartbeat_s: float | None = None  # time.monotonic() of the vehicle's last
+        self.last_heartbeat_s: float | None = None  # clock.monotonic() of the vehicle's last
         self._lock = threading.RLock()
         self._stop = threading.Event()
         self._dropped: str | None = None
@@ -301,6 +305,7 @@ class Link:
         source_system: int = 255,
         source_component: int = 190,
         on_message: MessageObserver | None = None,
+        clock: Clock = WALL_CLOCK,
     ) -> Link:
         """Open ``url``, start our heartbeat, and wait for the vehicle's heartbeat.
 
@@ -309,6 +314,9 @@ class Link:
         ``on_message(message, rx_time_utc_s)``: called for every valid message parsed, before
         the filtering of :meth:`recv`, from the first one read while waiting for the
         heartbeat (see the module docstring).
+        ``clock``: what the link's waits are measured on (:mod:`acquisition.clock`; tests pass a
+        :class:`~acquisition.clock.VirtualClock`, and the thread that opens the link is then
+        one of its parties until :meth:`close`).
         Raises :class:`LinkError` with what to check when the port cannot be opened or no
         autopilot is heard. ``require_signing`` needs a ``signing_key``.
         """
@@ -322,7 +330,7 @@ class Link:
                 f"a MAVLink signing key is 32 bytes, this one has {len(signing_key)}; "
                 f"see load_signing_key for the key file forms"
             )
-        conn = _open_with_patience(parsed, source_system, source_component, heartbeat_timeout_s)
+        conn = _open_with_patience(parsed, source_system, source_component, heartbeat_timeout_s, clock)
         link: Link | None = None
         try:
             link = cls(
@@ -333,7 +341,9 @@ class Link:
                 signing_key=signing_key,
                 require_signing=require_signing,
                 on_message=on_message,
+                clock=clock,
             )
+            link._party = clock.join()
             link._start_heartbeat()
             link._wait_for_vehicle(heartbeat_timeout_s)
         except BaseException:
@@ -361,10 +371,14 @@ class Link:
             return
         self._closed = True
         self._stop.set()
+        self.clock.interrupt()
         if self._heartbeat_thread is not None:
             self._heartbeat_thread.join(timeout=2.0)
         with self._lock:
             _close_quietly(self._conn)
+        if self._party is not None:
+            self.clock.leave(self._party)
+            self._party = None
         log.debug("closed %s", self.url)
 
     @property
@@ -405,19 +419,29 @@ class Link:
         ``on_message`` observer of :meth:`open` still sees them). Raises :class:`LinkError`
         when the link dropped.
         """
-        deadline = time.monotonic() + timeout_s
+        deadline = self.clock.monotonic() + timeout_s
         while True:
             message = self._recv_one()
             if message is not None:
                 if self._wanted(message, types, all_components):
                     return message
                 continue
-            remaining = deadline - time.monotonic()
+            remaining = deadline - self.clock.monotonic()
             if remaining <= 0:
                 return None
-            self._conn.select(min(remaining, 0.1))
+            self._wait_for_bytes(min(remaining, 0.1))
 
     # --- internals -------------------------------------------------------------------------------
+
+    def _wait_for_bytes(self, timeout_s: float) -> None:
+        if isinstance(self.clock, WallClock):
+            self._conn.select(timeout_s)  # mavutil's own wait (it knows ports without a descriptor)
+            return
+        fd = getattr(self._conn, "fd", None)
+        if fd is None:
+            self.clock.sleep(timeout_s)
+        else:
+            self.clock.wait_readable([fd], timeout_s)
 
     def _check_open(self) -> None:
         if self._closed:
@@ -446,8 +470,12 @@ class Link:
         # outside the lock: the observer may be slow (a disk write) and must not hold up our
         # heartbeat; a failure of its own is not a link drop and reaches the caller as it is
         if self._on_message is not None and message.get_type() != "BAD_DATA":
-            # mavutil stamps every message it parses with time.time() (its receive time)
-            self._on_message(message, float(getattr(message, "_timestamp", 0.0) or time.time()))
+            if isinstance(self.clock, WallClock):
+                # mavutil stamps every message it parses with time.time() (its receive time)
+                rx_time_utc_s = float(getattr(message, "_timestamp", 0.0) or time.time())
+            else:
+                rx_time_utc_s = self.clock.time()
+            self._on_message(message, rx_time_utc_s)
         return message
 
     def _wanted(self, message: Any, types: Collection[str] | None, all_components: bool) -> bool:
@@ -459,7 +487,7 @@ class Link:
             if message.get_srcSystem() != self.target_system:
                 return False
             if kind == "HEARTBEAT" and message.get_srcComponent() == self.target_component:
-                self.last_heartbeat_s = time.monotonic()
+                self.last_heartbeat_s = self.clock.monotonic()
             if not all_components and message.get_srcComponent() != self.target_component:
                 return False
         addressee = getattr(message, "target_system", 0)
@@ -487,24 +515,33 @@ class Link:
 
     def _start_heartbeat(self) -> None:
         def beat() -> None:
-            while not self._stop.is_set():
-                try:
-                    with self._lock:
-                        if self._closed:
-                            return
-                        self._conn.mav.send(self._heartbeat_message())
-                except OSError as error:
-                    log.debug("heartbeat not sent on %s: %s", self.url, error)
-                self._stop.wait(HEARTBEAT_INTERVAL_S)
+            try:
+                while not self._stop.is_set():
+                    try:
+                        with self._lock:
+                            if self._closed:
+                                return
+                            self._conn.mav.send(self._heartbeat_message())
+                    except OSError as error:
+                        log.debug("heartbeat not sent on %s: %s", self.url, error)
+                    self.clock.wait_event(self._stop, HEARTBEAT_INTERVAL_S)
+            finally:
+                self.clock.leave(party)
 
-        self._heartbeat_thread = threading.Thread(target=beat, name=f"sfap-heartbeat {self.url}", daemon=True)
-        self._heartbeat_thread.start()
+        thread = threading.Thread(target=beat, name=f"sfap-heartbeat {self.url}", daemon=True)
+        party = self.clock.join(thread)  # a party from before it starts: time waits for it
+        self._heartbeat_thread = thread
+        try:
+            thread.start()
+        except BaseException:
+            self.clock.leave(party)
+            raise
 
     def _wait_for_vehicle(self, timeout_s: float) -> None:
-        deadline = time.monotonic() + timeout_s
+        deadline = self.clock.monotonic() + timeout_s
         others: set[str] = set()
         while True:
-            remaining = deadline - time.monotonic()
+            remaining = deadline - self.clock.monotonic()
             if remaining <= 0:
                 raise LinkError(self._no_heartbeat_message(timeout_s, others))
             message = self.recv({"HEARTBEAT"}, timeout_s=remaining)
@@ -523,7 +560,7 @@ class Link:
             self.vehicle_type = vehicle_type_from_mav_type(self.mav_type)
             self.target_system = message.get_srcSystem()
             self.target_component = message.get_srcComponent()
-            self.last_heartbeat_s = time.monotonic()
+            self.last_heartbeat_s = self.clock.monotonic()
             log.info(
                 "%s: %s (MAV_TYPE %d), system %d component %d%s",
                 self.url,
@@ -642,10 +679,12 @@ def _enlarge_receive_buffer(conn: Any) -> None:
 CONNECT_PATIENCE_S = 5.0
 
 
-def _open_with_patience(url: LinkUrl, source_system: int, source_component: int, timeout_s: float) -> Any:
+def _open_with_patience(
+    url: LinkUrl, source_system: int, source_component: int, timeout_s: float, clock: Clock
+) -> Any:
     """:func:`_open_transport`; a refused ``tcp://`` connection is tried again every 0.2 s for
     up to min(:data:`CONNECT_PATIENCE_S`, ``timeout_s``) seconds."""
-    deadline = time.monotonic() + min(CONNECT_PATIENCE_S, timeout_s)
+    deadline = clock.monotonic() + min(CONNECT_PATIENCE_S, timeout_s)
     while True:
         try:
             conn = _open_transport(url, source_system, source_component)
@@ -654,9 +693,9 @@ def _open_with_patience(url: LinkUrl, source_system: int, source_component: int,
             return conn
         except LinkError as error:
             refused = isinstance(error.__cause__, ConnectionRefusedError)
-            if not refused or url.scheme != "tcp" or time.monotonic() + 0.2 > deadline:
+            if not refused or url.scheme != "tcp" or clock.monotonic() + 0.2 > deadline:
                 raise
-        time.sleep(0.2)
+        clock.sleep(0.2)
 
 
 def _open_transport(url: LinkUrl, source_system: int, source_component: int) -> Any:

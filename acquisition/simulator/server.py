@@ -48,8 +48,9 @@ line. What it does, and which real behaviour each part copies:
 - Optionally a .tlog of what it sends (before link faults): per packet an 8-byte big-endian
   microsecond UTC time stamp (simulated time) then the raw packet, as MAVProxy and QGC write.
 
-Timers of the protocol (re-requests, cancellation, latency) run on the wall clock; the flight,
-the boot delay and the GPS fix run on simulated time (``speedup`` x the wall clock).
+Every timer (re-requests, cancellation, latency, the flight's steps) runs on the vehicle's clock
+(``clock``: the wall clock, or a :class:`acquisition.clock.VirtualClock` in tests); the flight,
+the boot delay and the GPS fix run on flight time, ``speedup`` x that clock.
 
 A message is answered in the loop iteration that receives it, and what the link holds back
 (latency, baud rate) leaves when it falls due, not at the next step of the flight.
@@ -79,6 +80,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 from planner.errors import InputError, MissionValidationError
 from planner.mission import Autopilot, HomePosition, MissionItem, VehicleType
 
+from ..clock import WALL_CLOCK, Clock
 from ..errors import LinkError
 from ..mavlink_items import to_mission_item_int
 from .camera import FrameCard
@@ -184,7 +186,8 @@ class SimulatedVehicle:
     mission capacity (ArduPilot 724 including home, PX4 2000); ``flight`` the flight model's
     settings; ``link_baud`` makes the link a serial radio of that many baud (8N1, each way,
     shared with the telemetry; None: as fast as the socket); ``system_id`` /
-    ``component_id`` its MAVLink identity; ``streams_on_request``: periodic telemetry only
+    ``component_id`` its MAVLink identity; ``clock`` what its loop and timers run on (its
+    thread is a party of a :class:`~acquisition.clock.VirtualClock`); ``streams_on_request``: periodic telemetry only
     once a ground station asks for it (SET_MESSAGE_INTERVAL or REQUEST_DATA_STREAM), as
     ArduPilot on a serial port (default: True for ArduPilot, False for PX4; see
     :mod:`.flight`); ``follow_mission_home``: before its first flight the vehicle moves to
@@ -215,6 +218,7 @@ class SimulatedVehicle:
         streams_on_request: bool | None = None,
         follow_mission_home: bool = False,
         frames: FrameCard | None = None,
+        clock: Clock = WALL_CLOCK,
     ) -> None:
         if not (speedup > 0 and math.isfinite(speedup)):
             raise InputError(f"speedup is {speedup}; give a positive number (1 = real time)")
@@ -222,6 +226,7 @@ class SimulatedVehicle:
         self.vehicle_type = VehicleType(vehicle_type)
         self.faults = faults if faults is not None else FaultConfig()
         self.speedup = float(speedup)
+        self.clock = clock
         self.address = parse_listen_url(url)
         self.url = url
         self.tlog_path = Path(tlog_path) if tlog_path is not None else None
@@ -262,7 +267,7 @@ class SimulatedVehicle:
             home=home,
             config=flight or FlightConfig(seed=self.faults.seed),
             gps_fix_s=gps_fix_s,
-            boot_utc_s=time.time(),
+            boot_utc_s=self.clock.time(),
             streams_on_request=ardupilot if streams_on_request is None else streams_on_request,
         )
         self.streams_on_request = ardupilot if streams_on_request is None else streams_on_request
@@ -280,6 +285,7 @@ class SimulatedVehicle:
         self._auto_start = False
         self._auto_start_waits = False
         self._said_waiting = False
+        self._party: object = None
 
     # --- lifecycle ---------------------------------------------------------------------------
 
@@ -308,11 +314,17 @@ class SimulatedVehicle:
         )
         self._stop.clear()
         self._thread = threading.Thread(target=self._run, name="sfap-sim-vehicle", daemon=True)
-        self._thread.start()
+        self._party = self.clock.join(self._thread)  # a party from before it starts
+        try:
+            self._thread.start()
+        except BaseException:
+            self.clock.leave(self._party)
+            raise
 
     def stop(self) -> None:
         """Stop the thread and close the socket and the tlog."""
         self._stop.set()
+        self.clock.interrupt()
         if self._thread is not None:
             # The loop checks the stop flag between steps; a step of a heavily loaded simulation
             # can take long, so wait for it rather than pull the socket from under it.
@@ -415,7 +427,7 @@ class SimulatedVehicle:
                 raise LinkError(f"the simulated vehicle stopped: {self._error}") from self._error
             if time.monotonic() >= deadline:
                 return False
-            time.sleep(0.02)
+            self.clock.sleep(0.02)
 
     def wait_sim_time(self, sim_time_s: float, timeout_s: float = 30.0) -> bool:
         """Wait until the simulated clock has reached ``sim_time_s``."""
@@ -423,7 +435,7 @@ class SimulatedVehicle:
         while time.monotonic() < deadline:
             if self.sim_time_s >= sim_time_s:
                 return True
-            time.sleep(0.01)
+            self.clock.sleep(0.01)
         return False
 
     # --- the loop ----------------------------------------------------------------------------
@@ -434,13 +446,15 @@ class SimulatedVehicle:
         except BaseException as error:
             self._error = error
             log.exception("simulated vehicle stopped with an error")
+        finally:
+            self.clock.leave(self._party)
 
     def _loop(self) -> None:
         assert self._transport is not None
         self._send_text(6, SIMULATOR_BANNER)
-        last = time.monotonic()
+        last = self.clock.monotonic()
         while not self._stop.is_set():
-            for peer, data in self._transport.poll(self._poll_timeout_s(time.monotonic())):
+            for peer, data in self._transport.poll(self._poll_timeout_s(self.clock.monotonic()), self.clock):
                 self._receive_bytes(peer, data)
             if self._transport.new_peers:
                 # Say it to every ground station that connects, not only at boot, and let
@@ -449,14 +463,14 @@ class SimulatedVehicle:
                 with self._lock:
                     self._send(self.flight.heartbeat_message())
                 self._send_text(6, SIMULATOR_BANNER)
-            now = time.monotonic()
+            now = self.clock.monotonic()
             dt_wall = now - last
             last = now
             for msg in self._recv_pipe.release(now):
                 self._handle(msg)
             # Answers go out as soon as they are made, before the flight steps: the clock is
             # read again because what was just sent is stamped later than ``now``.
-            self._flush(time.monotonic())
+            self._flush(self.clock.monotonic())
             with self._lock:
                 # --auto-start waits for a GPS fix and for a mission (preloaded or uploaded).
                 if self._auto_start and self.flight.gps_has_fix and self.flight.has_mission:
@@ -477,7 +491,7 @@ class SimulatedVehicle:
                     self._send(msg, when_s)
                 self._write_frames()
                 self._protocol_timers(now)
-            self._flush(time.monotonic())
+            self._flush(self.clock.monotonic())
 
     def _write_frames(self) -> None:
         card = self.frames
@@ -520,7 +534,7 @@ class SimulatedVehicle:
         except Exception:
             log.debug("unparsable bytes from %s", peer, exc_info=True)
             return
-        now = time.monotonic()
+        now = self.clock.monotonic()
         for msg in msgs:
             if msg.get_type() == "BAD_DATA":
                 continue
@@ -539,7 +553,7 @@ class SimulatedVehicle:
             stamp_us = max(stamp_us, self._last_tlog_us)
             self._last_tlog_us = stamp_us
             self._tlog.write(struct.pack(">Q", stamp_us) + data)
-        self._send_pipe.offer(data, time.monotonic())
+        self._send_pipe.offer(data, self.clock.monotonic())
 
     def _flush(self, now: float) -> None:
         assert self._transport is not None
@@ -585,7 +599,7 @@ class SimulatedVehicle:
             req = M.MAVLink_mission_request_int_message(
                 upload.sysid, upload.compid, upload.expected, upload.mission_type
             )
-        upload.last_request_s = time.monotonic()
+        upload.last_request_s = self.clock.monotonic()
         self._send(req)
 
     def _items_for_readback(self, mission_type: int) -> list[WireItem]:
@@ -641,7 +655,7 @@ class SimulatedVehicle:
                 self._mission_changed(mission_type)
             self._ack(msg, MAV_MISSION_ACCEPTED, mission_type)
             return
-        now = time.monotonic()
+        now = self.clock.monotonic()
         self._upload = _Upload(
             mission_type=mission_type,
             count=int(msg.count),
@@ -693,7 +707,7 @@ class SimulatedVehicle:
             self._upload = None
             self._finish(msg, up, result)
             return
-        up.last_receive_s = time.monotonic()
+        up.last_receive_s = self.clock.monotonic()
         if ardupilot:
             stored = self._stored[mission_type]
             if msg.seq < len(stored):
@@ -743,7 +757,9 @@ class SimulatedVehicle:
     def _finish(self, msg: Any, up: _Upload, result: int) -> None:
         if result == MAV_MISSION_ACCEPTED:
             self._follow_home(up)
-        self._completed = _Completed(up.mission_type, up.count, up.sysid, up.compid, result, time.monotonic())
+        self._completed = _Completed(
+            up.mission_type, up.count, up.sysid, up.compid, result, self.clock.monotonic()
+        )
         self._mission_changed(up.mission_type)
         self._ack(msg, result, up.mission_type)
         log.info(

@@ -21,6 +21,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
+from acquisition.clock import WALL_CLOCK, VirtualClock
 from acquisition.errors import TransferError
 from acquisition.link import Link
 from acquisition.mavlink_items import (
@@ -92,7 +93,13 @@ def vehicle(
 ) -> SimulatedVehicle:
     options.setdefault("boot_delay_s", 0.0)
     options.setdefault("request_timeout_s", 0.1)  # the vehicle re-requests fast in tests
+    options.setdefault("clock", VirtualClock())
     return SimulatedVehicle(autopilot=autopilot, faults=faults, vehicle_type=vehicle_type, **options)
+
+
+def connect(sim: SimulatedVehicle) -> Link:
+    """A link to ``sim`` on the vehicle's clock (simulated time unless it is the wall clock)."""
+    return Link.open(sim.url_for_client, heartbeat_timeout_s=5.0, clock=sim.clock)
 
 
 def assert_stored_exactly(sim: SimulatedVehicle, sent: list[MissionItem]) -> None:
@@ -317,12 +324,12 @@ def run_round_trip(
     **options: Any,
 ) -> list[MissionItem]:
     """Upload (verified) and check the vehicle's store; with ``full`` also clear (and with
-    ``download`` download first).
+    ``download`` download first). The link runs on the vehicle's clock.
 
     Returns what the vehicle stored after the upload."""
     progress: list[tuple[TransferPhase, int, int]] = []
     settings = {**FAST, **options}
-    with Link.open(sim.url_for_client, heartbeat_timeout_s=5.0) as link:
+    with connect(sim) as link:
         result = upload_mission(
             link,
             mission_of(items, sim.autopilot),
@@ -372,10 +379,16 @@ def test_clean_link_700_items(autopilot: Autopilot) -> None:
         run_round_trip(sim, survey_items(700), full=False)
 
 
+#: The faulty-link case that also runs on the wall clock (every other one runs on simulated
+#: time, where the same timeouts fire without the wait): all the faults at once, latency included.
+REAL_TIME_CASE = ("mixed", Autopilot.ARDUPILOT)
+
+
 @pytest.mark.parametrize("autopilot", [Autopilot.ARDUPILOT, Autopilot.PX4])
 @pytest.mark.parametrize("fault", list(FAULTS))
 def test_faulty_link_50_items(autopilot: Autopilot, fault: str) -> None:
-    with vehicle(autopilot, FAULTS[fault], **LOSSY_VEHICLE) as sim:
+    clock = WALL_CLOCK if (fault, autopilot) == REAL_TIME_CASE else VirtualClock()
+    with vehicle(autopilot, FAULTS[fault], clock=clock, **LOSSY_VEHICLE) as sim:
         run_round_trip(sim, survey_items(50, seed=FAULTS[fault].seed), download=False, **LOSSY)
 
 
@@ -408,7 +421,7 @@ def test_fixed_wing_storage_is_verified() -> None:
 
 def test_ardupilot_no_space_after_boot_is_retried() -> None:
     with vehicle(Autopilot.ARDUPILOT, boot_delay_s=0.6) as sim:
-        with Link.open(sim.url_for_client, heartbeat_timeout_s=5.0) as link:
+        with connect(sim) as link:
             result = upload_mission(link, mission_of(survey_items(10)), **{**FAST, "no_space_wait_s": 0.3})
         assert any("NO_SPACE" in note for note in result.notes)
         assert_stored_exactly(sim, survey_items(10))
@@ -420,7 +433,7 @@ def test_vehicle_without_room_refuses(autopilot: Autopilot) -> None:
         sim.load_mission(survey_items(5))
         before = sim.stored_mission()
         with (
-            Link.open(sim.url_for_client, heartbeat_timeout_s=5.0) as link,
+            connect(sim) as link,
             pytest.raises(MissionTransferError) as caught,
         ):
             upload_mission(link, mission_of(survey_items(20)), **{**FAST, "no_space_retries": 1})
@@ -444,7 +457,7 @@ def test_vehicle_refusing_an_item(autopilot: Autopilot, state: MissionState) -> 
     with vehicle(autopilot, FaultConfig(refuse="invalid")) as sim:
         sim.load_mission(old)
         with (
-            Link.open(sim.url_for_client, heartbeat_timeout_s=5.0) as link,
+            connect(sim) as link,
             pytest.raises(MissionTransferError) as caught,
         ):
             upload_mission(link, mission_of(new), **FAST)
@@ -463,7 +476,7 @@ def test_invalid_mission_is_not_sent() -> None:
     bad = [MissionItem.waypoint(95.0, 0.5, 50.0), MissionItem.waypoint(41.0, 0.5, 500.0)]
     with vehicle(Autopilot.PX4) as sim:
         with (
-            Link.open(sim.url_for_client, heartbeat_timeout_s=5.0) as link,
+            connect(sim) as link,
             pytest.raises(MissionValidationError) as caught,
         ):
             upload_mission(link, mission_of(bad), max_alt_rel_home_m=120.0, **FAST)
@@ -479,7 +492,7 @@ def test_nan_that_ardupilot_refuses_is_caught_before_sending() -> None:
     ]
     with vehicle(Autopilot.ARDUPILOT) as sim:
         with (
-            Link.open(sim.url_for_client, heartbeat_timeout_s=5.0) as link,
+            connect(sim) as link,
             pytest.raises(MissionValidationError, match="param 3 is empty"),
         ):
             upload_mission(link, mission_of(items), **FAST)
@@ -490,7 +503,7 @@ def test_corrupted_store_fails_verification() -> None:
     items = survey_items(12)
     with (
         vehicle(Autopilot.ARDUPILOT) as sim,
-        Link.open(sim.url_for_client, heartbeat_timeout_s=5.0) as link,
+        connect(sim) as link,
     ):
         upload_mission(link, mission_of(items), **FAST)
         sim.corrupt_stored_item(5, param5=items[4].lat_deg + 1e-7)
@@ -582,7 +595,7 @@ def relay(
 )
 def test_link_drops_mid_transfer(autopilot: Autopilot, state: MissionState) -> None:
     old = survey_items(6, seed=9)
-    with vehicle(autopilot) as sim:
+    with vehicle(autopilot, clock=WALL_CLOCK) as sim:
         sim.load_mission(old)
         with (
             relay(sim.url_for_client, cut_after_items=20) as url,
@@ -625,7 +638,7 @@ def test_item_altered_in_flight_fails_verification() -> None:
         return message
 
     with (
-        vehicle(Autopilot.PX4) as sim,
+        vehicle(Autopilot.PX4, clock=WALL_CLOCK) as sim,
         relay(sim.url_for_client, alter=alter) as url,
         Link.open(url, heartbeat_timeout_s=5.0) as link,
         pytest.raises(MissionVerificationError) as caught,
@@ -646,7 +659,7 @@ def test_fence_is_kept_apart_from_the_mission() -> None:
     items = survey_items(10)
     with (
         vehicle(Autopilot.ARDUPILOT) as sim,
-        Link.open(sim.url_for_client, heartbeat_timeout_s=5.0) as link,
+        connect(sim) as link,
     ):
         upload_mission(link, mission_of(items), **FAST)
         result = upload_mission(link, mission_of(fence), mission_type=MissionType.FENCE, **FAST)
@@ -660,7 +673,7 @@ def test_downloaded_mission_takes_ardupilot_home() -> None:
     items = survey_items(5)
     with vehicle(Autopilot.ARDUPILOT, gps_fix_s=0.0) as sim:
         sim.load_mission(items)
-        with Link.open(sim.url_for_client, heartbeat_timeout_s=5.0) as link:
+        with connect(sim) as link:
             got = download_mission(link, timeout_s=0.2)
     mission = downloaded_mission(got, Autopilot.ARDUPILOT, VehicleType.MULTIROTOR)
     assert len(mission.items) == 5
@@ -673,7 +686,7 @@ def test_download_from_vehicle_that_never_answers() -> None:
         return None if message.get_type() == "MISSION_REQUEST_LIST" else message
 
     with (
-        vehicle(Autopilot.PX4) as sim,
+        vehicle(Autopilot.PX4, clock=WALL_CLOCK) as sim,
         relay(sim.url_for_client, alter=swallow_requests) as url,
         Link.open(url, heartbeat_timeout_s=5.0) as link,
         pytest.raises(TransferError) as caught,
@@ -714,7 +727,7 @@ def test_mission_larger_than_the_vehicle_is_refused_at_once_with_the_excess() ->
         sim.load_mission(survey_items(5))
         before = sim.stored_mission()
         with (
-            Link.open(sim.url_for_client, heartbeat_timeout_s=5.0) as link,
+            connect(sim) as link,
             pytest.raises(MissionTooLargeError) as caught,
         ):
             upload_mission(link, mission_of(items), **{**FAST, "no_space_wait_s": 2.0})
@@ -743,7 +756,7 @@ def test_plan_made_for_the_other_autopilot_is_named_not_sent(planned: Autopilot,
     name = {Autopilot.PX4: "PX4", Autopilot.ARDUPILOT: "ArduPilot"}
     with vehicle(actual) as sim:
         with (
-            Link.open(sim.url_for_client, heartbeat_timeout_s=5.0) as link,
+            connect(sim) as link,
             pytest.raises(MissionValidationError) as caught,
         ):
             upload_mission(link, mission, **FAST)
@@ -764,7 +777,7 @@ def test_trigger_distance_truncated_to_whole_metres_fails_verification() -> None
     assert [(d.index, d.field, d.received) for d in found] == [(1, "param 1", "11")]
     # and end to end: a vehicle that stored the truncated distance is caught by the read-back
     items = [*survey_items(6), MissionItem.cam_trigger_distance(11.06)]
-    with vehicle(Autopilot.ARDUPILOT) as sim, Link.open(sim.url_for_client, heartbeat_timeout_s=5.0) as link:
+    with vehicle(Autopilot.ARDUPILOT) as sim, connect(sim) as link:
         upload_mission(link, mission_of(items), **FAST)
         sim.corrupt_stored_item(len(items), param1=11.0)
         received = download_mission(link, timeout_s=0.2)
