@@ -187,8 +187,9 @@ class SimulatedVehicle:
     settings; ``link_baud`` makes the link a serial radio of that many baud (8N1, each way,
     shared with the telemetry; None: as fast as the socket); ``system_id`` /
     ``component_id`` its MAVLink identity; ``clock`` what its loop and timers run on (its
-    thread is a party of a :class:`~acquisition.clock.VirtualClock`); ``streams_on_request``: periodic telemetry only
-    once a ground station asks for it (SET_MESSAGE_INTERVAL or REQUEST_DATA_STREAM), as
+    thread is a party of a :class:`~acquisition.clock.VirtualClock`); ``streams_on_request``:
+    periodic telemetry only once a ground station asks for it
+    (SET_MESSAGE_INTERVAL or REQUEST_DATA_STREAM), as
     ArduPilot on a serial port (default: True for ArduPilot, False for PX4; see
     :mod:`.flight`); ``follow_mission_home``: before its first flight the vehicle moves to
     the home of the mission it is given (ArduPilot: the uploaded item 0; PX4: the first
