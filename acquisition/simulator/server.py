@@ -287,15 +287,24 @@ class SimulatedVehicle:
         self._auto_start_waits = False
         self._said_waiting = False
         self._party: object = None
+        self._caller_parties: list[object] = []
 
     # --- lifecycle ---------------------------------------------------------------------------
 
     def __enter__(self) -> SimulatedVehicle:
+        """Start; the thread that enters is a party of the vehicle's clock until the block
+        ends: on a :class:`~acquisition.clock.VirtualClock`, simulated time then stands still
+        while the block computes (its checks see the vehicle as it was when it last waited)."""
         self.start()
+        self._caller_parties.append(self.clock.join())
         return self
 
     def __exit__(self, *exc: object) -> None:
-        self.stop()
+        try:
+            self.stop()
+        finally:
+            if self._caller_parties:
+                self.clock.leave(self._caller_parties.pop())
 
     def start(self) -> None:
         """Open the socket and start the background thread."""

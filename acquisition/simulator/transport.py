@@ -16,7 +16,7 @@ from urllib.parse import urlsplit
 
 from ..clock import WALL_CLOCK, Clock, WallClock
 from ..errors import LinkError
-from ..link import LinkInputError
+from ..link_port import LinkInputError
 
 log = logging.getLogger(__name__)
 

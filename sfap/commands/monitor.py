@@ -8,8 +8,8 @@ from pathlib import Path
 
 import click
 
-from acquisition.link import SIGNING_KEY_ENV, load_signing_key
 from acquisition.monitor import MonitorResult, MonitorState, StopReason, monitor
+from acquisition.signing import SIGNING_KEY_ENV, load_signing_key
 
 from ..common import dumps_json, json_option, overwrite_option
 

@@ -13,8 +13,9 @@ from typing import Any, TypeVar
 import click
 
 from acquisition.errors import LinkError
-from acquisition.link import SIGNING_KEY_ENV, Link, load_signing_key
+from acquisition.link import Link
 from acquisition.mission_protocol import DEFAULT_RETRIES, DEFAULT_TIMEOUT_S, TransferPhase
+from acquisition.signing import SIGNING_KEY_ENV, load_signing_key
 from acquisition.transfer import upload_mission
 from acquisition.transfer_outcome import MissionInputError, MissionVerificationError
 from planner.errors import MissionFileError, MissionValidationError

@@ -19,8 +19,11 @@ import pytest
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
+from acquisition.clock import VirtualClock
 from acquisition.errors import LinkError
-from acquisition.link import URL_EXAMPLES, Link, LinkUrl, load_signing_key
+from acquisition.link import Link
+from acquisition.link_port import URL_EXAMPLES, LinkUrl
+from acquisition.signing import load_signing_key
 from acquisition.simulator.server import SimulatedVehicle
 from planner.mission import Autopilot, VehicleType
 
@@ -224,13 +227,17 @@ def test_udpin_link_hears_a_vehicle_that_sends_to_us() -> None:
 
 
 def test_sends_gcs_heartbeats_while_open() -> None:
-    with SimulatedVehicle(autopilot=Autopilot.PX4) as vehicle:
-        with Link.open(vehicle.url_for_client, heartbeat_timeout_s=5.0):
-            time.sleep(1.3)
+    # on simulated time: the link's heartbeat thread and the vehicle wait on the same clock
+    clock = VirtualClock()
+    with SimulatedVehicle(autopilot=Autopilot.PX4, clock=clock) as vehicle:
+        with Link.open(vehicle.url_for_client, heartbeat_timeout_s=5.0, clock=clock):
+            opened = clock.monotonic()
+            clock.sleep(2.5)
             during = vehicle.received_counts.get("HEARTBEAT", 0)
-        time.sleep(1.2)
+        assert clock.monotonic() - opened == 2.5
+        clock.sleep(3.0)
         after = vehicle.received_counts.get("HEARTBEAT", 0)
-    assert during >= 2  # one at open, one a second later
+    assert during == 3  # one at open, then one a second, at 1 s and 2 s
     assert after == during  # the thread stopped with the link
 
 
