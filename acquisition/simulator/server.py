@@ -13,11 +13,11 @@ line. What it does, and which real behaviour each part copies:
   * ArduPilot (copied from ArduPilot 4.5's MissionItemProtocol and AP_Mission): requests
     items with the legacy MISSION_REQUEST (id 40); accepts MISSION_ITEM_INT (and MISSION_ITEM,
     with a STATUSTEXT warning); answers an item with an unexpected seq with
-    MAV_MISSION_INVALID_SEQUENCE and carries on; re-requests after 1 s without an item and
-    cancels (MAV_MISSION_OPERATION_CANCELLED) after 8 s; writes items as they arrive, so a
+    MissionResult.INVALID_SEQUENCE and carries on; re-requests after 1 s without an item and
+    cancels (MissionResult.OPERATION_CANCELLED) after 8 s; writes items as they arrive, so a
     failed upload leaves a partial mission; stores home as item 0 (what is uploaded as item 0
     is ignored: home reads back as zeros until the GPS has a fix, then as the home position);
-    refuses uploads with MAV_MISSION_NO_SPACE ("Only 0 items are supported") for
+    refuses uploads with MissionResult.NO_SPACE ("Only 0 items are supported") for
     ``boot_delay_s`` after boot; stores items compressed (see :func:`ardupilot_store`);
     rejects NaN in params 1-4 except where AP_Mission allows it; denies downloads during an
     upload; does not repeat the final ACK when the last item is sent again.
@@ -57,8 +57,7 @@ A message is answered in the loop iteration that receives it, and what the link 
 
 The parts live in modules of their own: :mod:`.faults` (fault injection), :mod:`.storage` (how
 each autopilot stores items), :mod:`.transport` (URLs and sockets), :mod:`.flight` (the flight
-and its telemetry); this module is the vehicle and its protocol, and re-exports the names
-other code imports from here.
+and its telemetry); this module is the vehicle and its protocol.
 """
 
 from __future__ import annotations
@@ -78,59 +77,33 @@ from typing import IO, Any
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from planner.errors import InputError, MissionValidationError
-from planner.mission import Autopilot, HomePosition, MissionItem, VehicleType
+from planner.mission import Autopilot, HomePosition, MavFrame, MissionItem, VehicleType
 
 from ..clock import WALL_CLOCK, Clock
 from ..errors import LinkError
-from ..mavlink_items import to_mission_item_int
+from ..mavlink_items import (
+    MissionResult,
+    MissionType,
+    e7_to_deg,
+    is_global_frame,
+    plain_wire_frame,
+    to_mission_item_int,
+)
 from .camera import FrameCard
 from .faults import FaultConfig, FaultStats, FaultyPipe, Refusal
 from .flight import FlightConfig, FlightSimulator
 from .storage import (
-    MAV_MISSION_ACCEPTED,
-    MAV_MISSION_DENIED,
-    MAV_MISSION_ERROR,
-    MAV_MISSION_INVALID,
-    MAV_MISSION_INVALID_SEQUENCE,
-    MAV_MISSION_NO_SPACE,
-    MAV_MISSION_OPERATION_CANCELLED,
-    MAV_MISSION_UNSUPPORTED,
-    MISSION_TYPE_FENCE,
-    MISSION_TYPE_MISSION,
-    MISSION_TYPE_RALLY,
     MISSION_TYPES,
     NO_HOME,
     WireItem,
-    ardupilot_store,
     home_wire_item,
     item_float_message,
     item_int_message,
-    px4_store,
     store_item,
     wire_item_from_message,
     wire_item_to_mission_item,
 )
-from .transport import ListenAddress, Transport, parse_listen_url
-
-__all__ = [
-    "DEFAULT_HOME",
-    "MISSION_TYPE_FENCE",
-    "MISSION_TYPE_MISSION",
-    "MISSION_TYPE_RALLY",
-    "SIMULATOR_BANNER",
-    "FaultConfig",
-    "FaultStats",
-    "ListenAddress",
-    "Refusal",
-    "SimulatedVehicle",
-    "WireItem",
-    "ardupilot_store",
-    "parse_listen_url",
-    "px4_store",
-    "serve",
-    "wire_item_from_message",
-    "wire_item_to_mission_item",
-]
+from .transport import Transport, parse_listen_url
 
 log = logging.getLogger(__name__)
 
@@ -382,7 +355,7 @@ class SimulatedVehicle:
     def receive_stats(self) -> FaultStats:
         return self._recv_pipe.stats
 
-    def stored_mission(self, mission_type: int = MISSION_TYPE_MISSION) -> list[MissionItem]:
+    def stored_mission(self, mission_type: int = MissionType.MISSION) -> list[MissionItem]:
         """A copy of the stored mission as a ground station would read it back
         (ArduPilot: home at index 0)."""
         with self._lock:
@@ -392,7 +365,7 @@ class SimulatedVehicle:
         """Store ``items`` as if uploaded (ArduPilot: give the items without home)."""
         with self._lock:
             stored: list[WireItem] = []
-            if self.autopilot is Autopilot.ARDUPILOT and mission_type == MISSION_TYPE_MISSION:
+            if self.autopilot is Autopilot.ARDUPILOT and mission_type == MissionType.MISSION:
                 stored.append(NO_HOME)
             for seq, item in enumerate(items):
                 wire = wire_item_from_message(to_mission_item_int(item, seq, 1, 1, mission_type))
@@ -410,12 +383,12 @@ class SimulatedVehicle:
         """Change stored item ``seq`` (index as read back) behind the protocol's back, so a
         test can prove that a verification notices. ``changes`` are MissionItem fields."""
         with self._lock:
-            stored = self._stored[MISSION_TYPE_MISSION]
+            stored = self._stored[MissionType.MISSION]
             if not 0 <= seq < len(stored):
                 raise IndexError(f"seq {seq} is outside the stored mission (0-{len(stored) - 1})")
             item = dataclasses.replace(wire_item_to_mission_item(stored[seq]), **changes)
             stored[seq] = wire_item_from_message(to_mission_item_int(item, seq, 1, 1, 0))
-            self._mission_changed(MISSION_TYPE_MISSION)
+            self._mission_changed(MissionType.MISSION)
 
     def auto_start(self, *, wait_for_telemetry: bool = False) -> None:
         """Arm and start the mission (AUTO) as soon as the GPS has a fix and a mission is
@@ -614,7 +587,7 @@ class SimulatedVehicle:
 
     def _items_for_readback(self, mission_type: int) -> list[WireItem]:
         items = list(self._stored[mission_type])
-        if self.autopilot is Autopilot.ARDUPILOT and mission_type == MISSION_TYPE_MISSION:
+        if self.autopilot is Autopilot.ARDUPILOT and mission_type == MissionType.MISSION:
             if not items:
                 items = [NO_HOME]
             items[0] = self._home_item()
@@ -627,28 +600,28 @@ class SimulatedVehicle:
         return store_item(item, self.autopilot, self.vehicle_type, mission_type)
 
     def _mission_changed(self, mission_type: int) -> None:
-        if mission_type == MISSION_TYPE_MISSION:
+        if mission_type == MissionType.MISSION:
             items = [wire_item_to_mission_item(w) for w in self._items_for_readback(0)]
             self.flight.set_mission(items)
 
     def _on_mission_count(self, msg: Any) -> None:
         mission_type = int(getattr(msg, "mission_type", 0))
         if mission_type not in MISSION_TYPES:
-            self._ack(msg, MAV_MISSION_UNSUPPORTED, mission_type)
+            self._ack(msg, MissionResult.UNSUPPORTED, mission_type)
             return
         up = self._upload
         if up is not None:
             if (up.sysid, up.compid) != (msg.get_srcSystem(), msg.get_srcComponent()):
-                self._ack(msg, MAV_MISSION_DENIED, mission_type)
+                self._ack(msg, MissionResult.DENIED, mission_type)
                 return
             self._upload = None  # the same ground station restarts its upload
         ardupilot = self.autopilot is Autopilot.ARDUPILOT
         if ardupilot and self.flight.time_s < self.boot_delay_s:
-            self._ack(msg, MAV_MISSION_NO_SPACE, mission_type)
+            self._ack(msg, MissionResult.NO_SPACE, mission_type)
             self._send_text(4, "Only 0 items are supported")
             return
         if (self.faults.refuse == Refusal.NO_SPACE and msg.count > 0) or msg.count > self.max_items:
-            self._ack(msg, MAV_MISSION_NO_SPACE, mission_type)
+            self._ack(msg, MissionResult.NO_SPACE, mission_type)
             if ardupilot:  # PX4 says nothing more than its NO_SPACE
                 self._send_text(4, f"Only {self.max_items} items are supported")
             return
@@ -656,14 +629,14 @@ class SimulatedVehicle:
         if ardupilot:
             # ArduPilot truncates at once and writes items as they arrive.
             stored = self._stored[mission_type]
-            keep = max(msg.count, 1) if mission_type == MISSION_TYPE_MISSION else msg.count
+            keep = max(msg.count, 1) if mission_type == MissionType.MISSION else msg.count
             del stored[keep:]
             self._mission_changed(mission_type)
         if msg.count == 0:
             if not ardupilot:
                 self._stored[mission_type] = []
                 self._mission_changed(mission_type)
-            self._ack(msg, MAV_MISSION_ACCEPTED, mission_type)
+            self._ack(msg, MissionResult.ACCEPTED, mission_type)
             return
         now = self.clock.monotonic()
         self._upload = _Upload(
@@ -697,19 +670,19 @@ class SimulatedVehicle:
             return
         if msg.seq != up.expected:
             if ardupilot:
-                self._ack(msg, MAV_MISSION_INVALID_SEQUENCE, mission_type)
+                self._ack(msg, MissionResult.INVALID_SEQUENCE, mission_type)
             return
         if (msg.get_srcSystem(), msg.get_srcComponent()) != (up.sysid, up.compid):
-            self._ack(msg, MAV_MISSION_DENIED, mission_type)
+            self._ack(msg, MissionResult.DENIED, mission_type)
             return
         wire = wire_item_from_message(msg)
         if self.faults.refuse == Refusal.INVALID and msg.seq == up.count // 2:
-            result: WireItem | int = MAV_MISSION_INVALID
-        elif ardupilot and mission_type == MISSION_TYPE_MISSION and msg.seq == 0:
+            result: WireItem | int = MissionResult.INVALID
+        elif ardupilot and mission_type == MissionType.MISSION and msg.seq == 0:
             result = NO_HOME  # home: ArduPilot keeps its own
-            if wire.frame in (0, 5) and (wire.x != 0 or wire.y != 0):  # MAV_FRAME_GLOBAL(_INT)
+            if plain_wire_frame(wire.frame) == MavFrame.GLOBAL and (wire.x != 0 or wire.y != 0):
                 self._uploaded_home = HomePosition(
-                    lat_deg=wire.x / 1e7, lon_deg=wire.y / 1e7, alt_amsl_m=float(wire.z)
+                    lat_deg=e7_to_deg(wire.x), lon_deg=e7_to_deg(wire.y), alt_amsl_m=float(wire.z)
                 )
         else:
             result = self._store(wire, mission_type)
@@ -732,13 +705,13 @@ class SimulatedVehicle:
             self._upload = None
             if not ardupilot:
                 self._stored[mission_type] = list(up.items)
-            self._finish(msg, up, MAV_MISSION_ACCEPTED)
+            self._finish(msg, up, MissionResult.ACCEPTED)
             return
         self._request(up)
 
     def _follow_home(self, up: _Upload) -> None:
         """``follow_mission_home``: move to the uploaded mission's home before the first flight."""
-        if not self.follow_mission_home or up.mission_type != MISSION_TYPE_MISSION:
+        if not self.follow_mission_home or up.mission_type != MissionType.MISSION:
             return
         flight = self.flight
         if flight.has_flown or flight.armed:
@@ -746,9 +719,11 @@ class SimulatedVehicle:
         home = self._uploaded_home
         if home is None and self.autopilot is Autopilot.PX4:
             for wire in up.items:
-                if wire.frame in (0, 3, 5, 6, 10, 11) and (wire.x != 0 or wire.y != 0):
+                if is_global_frame(wire.frame) and (wire.x != 0 or wire.y != 0):
                     home = HomePosition(
-                        lat_deg=wire.x / 1e7, lon_deg=wire.y / 1e7, alt_amsl_m=flight.home.alt_amsl_m
+                        lat_deg=e7_to_deg(wire.x),
+                        lon_deg=e7_to_deg(wire.y),
+                        alt_amsl_m=flight.home.alt_amsl_m,
                     )
                     break
         self._uploaded_home = None
@@ -765,7 +740,7 @@ class SimulatedVehicle:
         )
 
     def _finish(self, msg: Any, up: _Upload, result: int) -> None:
-        if result == MAV_MISSION_ACCEPTED:
+        if result == MissionResult.ACCEPTED:
             self._follow_home(up)
         self._completed = _Completed(
             up.mission_type, up.count, up.sysid, up.compid, result, self.clock.monotonic()
@@ -789,7 +764,7 @@ class SimulatedVehicle:
             self._mission_changed(up.mission_type)
             self._send(
                 M.MAVLink_mission_ack_message(
-                    up.sysid, up.compid, MAV_MISSION_OPERATION_CANCELLED, up.mission_type
+                    up.sysid, up.compid, MissionResult.OPERATION_CANCELLED, up.mission_type
                 )
             )
             log.info("simulated vehicle: upload timed out at item %d of %d", up.expected, up.count)
@@ -800,10 +775,10 @@ class SimulatedVehicle:
     def _on_mission_request_list(self, msg: Any) -> None:
         mission_type = int(getattr(msg, "mission_type", 0))
         if mission_type not in MISSION_TYPES:
-            self._ack(msg, MAV_MISSION_UNSUPPORTED, mission_type)
+            self._ack(msg, MissionResult.UNSUPPORTED, mission_type)
             return
         if self._upload is not None:
-            self._ack(msg, MAV_MISSION_DENIED, mission_type)
+            self._ack(msg, MissionResult.DENIED, mission_type)
             return
         count = len(self._items_for_readback(mission_type))
         self._send(
@@ -813,11 +788,11 @@ class SimulatedVehicle:
     def _answer_request(self, msg: Any, as_int: bool) -> None:
         mission_type = int(getattr(msg, "mission_type", 0))
         if mission_type not in MISSION_TYPES:
-            self._ack(msg, MAV_MISSION_UNSUPPORTED, mission_type)
+            self._ack(msg, MissionResult.UNSUPPORTED, mission_type)
             return
         if self._upload is not None:
             if self.autopilot is Autopilot.ARDUPILOT or not as_int:
-                self._ack(msg, MAV_MISSION_DENIED, mission_type)
+                self._ack(msg, MissionResult.DENIED, mission_type)
             # PX4 ignores requests during its own upload
             return
         items = self._items_for_readback(mission_type)
@@ -828,7 +803,7 @@ class SimulatedVehicle:
                         msg.get_srcSystem(), msg.get_srcComponent(), len(items), mission_type
                     )
                 )
-            self._ack(msg, MAV_MISSION_INVALID_SEQUENCE, mission_type)
+            self._ack(msg, MissionResult.INVALID_SEQUENCE, mission_type)
             return
         build = item_int_message if as_int else item_float_message
         if not as_int and self.autopilot is Autopilot.ARDUPILOT:
@@ -864,19 +839,19 @@ class SimulatedVehicle:
     def _on_mission_clear_all(self, msg: Any) -> None:
         mission_type = int(getattr(msg, "mission_type", 0))
         if mission_type not in MISSION_TYPES:
-            self._ack(msg, MAV_MISSION_UNSUPPORTED, mission_type)
+            self._ack(msg, MissionResult.UNSUPPORTED, mission_type)
             return
         up = self._upload
         if up is not None and (up.sysid, up.compid) != (
             msg.get_srcSystem(),
             msg.get_srcComponent(),
         ):
-            self._ack(msg, MAV_MISSION_ERROR, mission_type)
+            self._ack(msg, MissionResult.ERROR, mission_type)
             return
         self._upload = None
         self._stored[mission_type] = []
         self._mission_changed(mission_type)
-        self._ack(msg, MAV_MISSION_ACCEPTED, mission_type)
+        self._ack(msg, MissionResult.ACCEPTED, mission_type)
 
     def _on_mission_set_current(self, msg: Any) -> None:
         self.flight.set_current(int(msg.seq))

@@ -7,10 +7,10 @@ from pathlib import Path
 import click
 
 from acquisition.simulator.camera import FrameCard
+from acquisition.simulator.faults import FaultConfig
 from acquisition.simulator.server import (
     DEFAULT_HOME,
     SIMULATOR_BANNER,
-    FaultConfig,
     SimulatedVehicle,
     serve,
 )

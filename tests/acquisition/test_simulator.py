@@ -27,15 +27,11 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from acquisition.errors import LinkError
 from acquisition.mavlink_items import from_mission_item, to_mission_item_int
-from acquisition.simulator.faults import FaultyPipe
+from acquisition.simulator.faults import FaultConfig, FaultyPipe
 from acquisition.simulator.flight import FlightConfig, FlightSimulator
-from acquisition.simulator.server import (
-    FaultConfig,
-    SimulatedVehicle,
-    WireItem,
-    ardupilot_store,
-    parse_listen_url,
-)
+from acquisition.simulator.server import SimulatedVehicle
+from acquisition.simulator.storage import WireItem, ardupilot_store, wire_item_from_message
+from acquisition.simulator.transport import parse_listen_url
 from planner.errors import InputError
 from planner.geo import geodesic_distance_m
 from planner.mission import Autopilot, HomePosition, MavFrame, MissionItem, VehicleType
@@ -419,7 +415,6 @@ def test_ardupilot_rules_for_plane_copter_and_nan() -> None:
     assert isinstance(ardupilot_store(wire(16, 3, (0, 0, 0, math.nan)), VehicleType.MULTIROTOR), WireItem)
     gimbal = MissionItem.gimbal_manager_pitch_yaw(-90.0, 0.0)  # params 3-4 NaN ("unchanged")
     msg = to_mission_item_int(gimbal, 1, 1, 1, 0)
-    from acquisition.simulator.server import wire_item_from_message
 
     assert ardupilot_store(wire_item_from_message(msg), VehicleType.MULTIROTOR) == INVALID_PARAM3
     mount = ardupilot_store(

@@ -33,7 +33,8 @@ from acquisition.mavlink_items import (
 )
 from acquisition.mission_protocol import TransferPhase
 from acquisition.readback import verify_readback
-from acquisition.simulator.server import FaultConfig, SimulatedVehicle
+from acquisition.simulator.faults import FaultConfig
+from acquisition.simulator.server import SimulatedVehicle
 from acquisition.transfer import clear_mission, download_mission, downloaded_mission, upload_mission
 from acquisition.transfer_outcome import (
     MissionState,

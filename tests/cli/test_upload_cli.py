@@ -10,7 +10,8 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-from acquisition.simulator.server import FaultConfig, SimulatedVehicle
+from acquisition.simulator.faults import FaultConfig
+from acquisition.simulator.server import SimulatedVehicle
 from planner.formats import read_mission
 from planner.formats.qgc_plan import write_plan
 from planner.formats.waypoints import write_waypoints
