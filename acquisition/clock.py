@@ -120,7 +120,7 @@ class VirtualClock:
         self._lock = threading.Lock()
         self._parties: dict[threading.Thread, int] = {}  # party -> times joined
         self._waiting: dict[threading.Thread, _Waiter] = {}
-        self._pipes = threading.local()
+        self._pipes: dict[threading.Thread, tuple[int, int]] = {}  # wake-up pipe of each waiter
         self.advances = 0  # how many times time jumped (for tests)
 
     # --- reading ------------------------------------------------------------------------------
@@ -145,6 +145,7 @@ class VirtualClock:
             count = self._parties.get(token, 0) - 1
             if count <= 0:
                 self._parties.pop(token, None)
+                self._release_pipe(token)
             else:
                 self._parties[token] = count
             self._advance_if_idle()
@@ -168,19 +169,29 @@ class VirtualClock:
         self._wait([], timeout_s, event)
         return event.is_set()
 
-    def _wake_pipe(self) -> tuple[int, int]:
-        pipe = getattr(self._pipes, "pipe", None)
+    def _wake_pipe(self, thread: threading.Thread) -> tuple[int, int]:
+        """The calling thread's wake-up pipe (kept while it is a party; called with the lock)."""
+        pipe = self._pipes.get(thread)
         if pipe is None:
             pipe = os.pipe()
             os.set_blocking(pipe[0], False)
             os.set_blocking(pipe[1], False)
-            self._pipes.pipe = pipe
+            self._pipes[thread] = pipe
         return pipe
+
+    def _release_pipe(self, thread: threading.Thread) -> None:
+        """Close the pipe of a thread that neither waits nor is a party (called with the lock)."""
+        if thread in self._waiting or thread in self._parties:
+            return
+        pipe = self._pipes.pop(thread, None)
+        if pipe is not None:
+            os.close(pipe[0])
+            os.close(pipe[1])
 
     def _wait(self, fds: list[int], timeout_s: float, event: threading.Event | None) -> bool:
         ident = threading.current_thread()
-        wake_r, wake_w = self._wake_pipe()
         with self._lock:
+            wake_r, wake_w = self._wake_pipe(ident)
             waiter = _Waiter(
                 deadline=self._now + max(timeout_s, 0.0),
                 fds=fds,
@@ -210,7 +221,8 @@ class VirtualClock:
         finally:
             with self._lock:
                 self._waiting.pop(ident, None)
-            _drain(wake_r)
+                _drain(wake_r)
+                self._release_pipe(ident)
         if not readable and fds:
             readable = _readable_now(fds)
         return readable
@@ -229,6 +241,7 @@ class VirtualClock:
         for thread in list(self._parties):
             if thread.ident is not None and not thread.is_alive():  # ended without leaving
                 self._parties.pop(thread, None)
+                self._release_pipe(thread)
         if not self._waiting:
             return
         if any(ident not in self._waiting for ident in self._parties):

@@ -62,7 +62,6 @@ and its telemetry); this module is the vehicle and its protocol.
 
 from __future__ import annotations
 
-import dataclasses
 import logging
 import math
 import random
@@ -70,39 +69,24 @@ import struct
 import threading
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from planner.errors import InputError, MissionValidationError
-from planner.mission import Autopilot, HomePosition, MavFrame, MissionItem, VehicleType
+from planner.errors import InputError
+from planner.mission import Autopilot, HomePosition, MissionItem, VehicleType
 
 from ..clock import WALL_CLOCK, Clock
 from ..errors import LinkError
 from ..mavlink_items import (
-    MissionResult,
     MissionType,
-    e7_to_deg,
-    is_global_frame,
-    plain_wire_frame,
-    to_mission_item_int,
 )
 from .camera import FrameCard
-from .faults import FaultConfig, FaultStats, FaultyPipe, Refusal
+from .commands import VehicleCommands
+from .faults import FaultConfig, FaultStats, FaultyPipe
 from .flight import FlightConfig, FlightSimulator
-from .storage import (
-    MISSION_TYPES,
-    NO_HOME,
-    WireItem,
-    home_wire_item,
-    item_float_message,
-    item_int_message,
-    store_item,
-    wire_item_from_message,
-    wire_item_to_mission_item,
-)
+from .missions import VehicleMissions
 from .transport import Transport, parse_listen_url
 
 log = logging.getLogger(__name__)
@@ -120,28 +104,6 @@ _POLL_S = 0.002
 
 
 # --- the vehicle --------------------------------------------------------------------------------
-
-
-@dataclass
-class _Upload:
-    mission_type: int
-    count: int
-    sysid: int
-    compid: int
-    expected: int = 0
-    items: list[WireItem] = field(default_factory=list)
-    last_request_s: float = 0.0
-    last_receive_s: float = 0.0
-
-
-@dataclass
-class _Completed:
-    mission_type: int
-    count: int
-    sysid: int
-    compid: int
-    result: int
-    at_s: float
 
 
 class SimulatedVehicle:
@@ -218,10 +180,7 @@ class SimulatedVehicle:
         self.system_id = system_id
         self.component_id = component_id
 
-        self._lock = threading.RLock()
-        self._stored: dict[int, list[WireItem]] = {t: [] for t in MISSION_TYPES}
-        self._upload: _Upload | None = None
-        self._completed: _Completed | None = None
+        self.lock = threading.RLock()
         self._warned: set[str] = set()
         self._mav = M.MAVLink(None, srcSystem=system_id, srcComponent=component_id)
         self._parsers: dict[object, Any] = {}
@@ -247,7 +206,8 @@ class SimulatedVehicle:
         self.streams_on_request = ardupilot if streams_on_request is None else streams_on_request
         self.follow_mission_home = follow_mission_home
         self.frames = frames
-        self._uploaded_home: HomePosition | None = None
+        self.missions = VehicleMissions(self)
+        self.commands = VehicleCommands(self)
         self._transport: Transport | None = None
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()
@@ -344,7 +304,7 @@ class SimulatedVehicle:
     @property
     def sim_time_s(self) -> float:
         """Simulated seconds since boot."""
-        with self._lock:
+        with self.lock:
             return self.flight.time_s
 
     @property
@@ -358,44 +318,23 @@ class SimulatedVehicle:
     def stored_mission(self, mission_type: int = MissionType.MISSION) -> list[MissionItem]:
         """A copy of the stored mission as a ground station would read it back
         (ArduPilot: home at index 0)."""
-        with self._lock:
-            return [wire_item_to_mission_item(w) for w in self._items_for_readback(mission_type)]
+        return self.missions.stored_mission(mission_type)
 
     def load_mission(self, items: Sequence[MissionItem], mission_type: int = 0) -> None:
         """Store ``items`` as if uploaded (ArduPilot: give the items without home)."""
-        with self._lock:
-            stored: list[WireItem] = []
-            if self.autopilot is Autopilot.ARDUPILOT and mission_type == MissionType.MISSION:
-                stored.append(NO_HOME)
-            for seq, item in enumerate(items):
-                wire = wire_item_from_message(to_mission_item_int(item, seq, 1, 1, mission_type))
-                result = self._store(wire, mission_type)
-                if isinstance(result, int):
-                    raise MissionValidationError(
-                        f"the simulated {self.autopilot.value} vehicle refuses item {seq + 1} "
-                        f"({item.command_name}): MAV_MISSION_RESULT {result}; fix the item"
-                    )
-                stored.append(result)
-            self._stored[mission_type] = stored
-            self._mission_changed(mission_type)
+        self.missions.load_mission(items, mission_type)
 
     def corrupt_stored_item(self, seq: int, **changes: Any) -> None:
         """Change stored item ``seq`` (index as read back) behind the protocol's back, so a
         test can prove that a verification notices. ``changes`` are MissionItem fields."""
-        with self._lock:
-            stored = self._stored[MissionType.MISSION]
-            if not 0 <= seq < len(stored):
-                raise IndexError(f"seq {seq} is outside the stored mission (0-{len(stored) - 1})")
-            item = dataclasses.replace(wire_item_to_mission_item(stored[seq]), **changes)
-            stored[seq] = wire_item_from_message(to_mission_item_int(item, seq, 1, 1, 0))
-            self._mission_changed(MissionType.MISSION)
+        self.missions.corrupt_stored_item(seq, **changes)
 
     def auto_start(self, *, wait_for_telemetry: bool = False) -> None:
         """Arm and start the mission (AUTO) as soon as the GPS has a fix and a mission is
         stored, once; as a ground station would with ARM_DISARM and MISSION_START. With
         ``wait_for_telemetry`` it also waits until a ground station has asked for telemetry
         (a monitor does at once): a crew starts the flight once the flight is being watched."""
-        with self._lock:
+        with self.lock:
             self._auto_start = True
             self._auto_start_waits = wait_for_telemetry
 
@@ -403,7 +342,7 @@ class SimulatedVehicle:
         """Wait (wall seconds) until the vehicle has flown and landed; True if it has."""
         deadline = time.monotonic() + timeout_s
         while True:
-            with self._lock:
+            with self.lock:
                 if self.flight.has_landed_after_flight:
                     return True
             if self._error is not None:
@@ -434,7 +373,7 @@ class SimulatedVehicle:
 
     def _loop(self) -> None:
         assert self._transport is not None
-        self._send_text(6, SIMULATOR_BANNER)
+        self.send_text(6, SIMULATOR_BANNER)
         last = self.clock.monotonic()
         while not self._stop.is_set():
             for peer, data in self._transport.poll(self._poll_timeout_s(self.clock.monotonic()), self.clock):
@@ -443,9 +382,9 @@ class SimulatedVehicle:
                 # Say it to every ground station that connects, not only at boot, and let
                 # it hear a heartbeat at once rather than up to a second later.
                 self._transport.new_peers = 0
-                with self._lock:
-                    self._send(self.flight.heartbeat_message())
-                self._send_text(6, SIMULATOR_BANNER)
+                with self.lock:
+                    self.send(self.flight.heartbeat_message())
+                self.send_text(6, SIMULATOR_BANNER)
             now = self.clock.monotonic()
             dt_wall = now - last
             last = now
@@ -454,13 +393,13 @@ class SimulatedVehicle:
             # Answers go out as soon as they are made, before the flight steps: the clock is
             # read again because what was just sent is stamped later than ``now``.
             self._flush(self.clock.monotonic())
-            with self._lock:
+            with self.lock:
                 # --auto-start waits for a GPS fix and for a mission (preloaded or uploaded).
                 if self._auto_start and self.flight.gps_has_fix and self.flight.has_mission:
                     if self._auto_start_waits and not self.flight.telemetry_requested:
                         if not self._said_waiting:
                             self._said_waiting = True
-                            self._send_text(6, "Auto-start: waiting for a GCS to ask telemetry")
+                            self.send_text(6, "Auto-start: waiting for a GCS to ask telemetry")
                             log.info(
                                 "simulated vehicle: mission stored; waiting for a ground station to "
                                 "ask for telemetry (sfap monitor) before starting"
@@ -469,11 +408,11 @@ class SimulatedVehicle:
                         self._auto_start = False
                         self._start_by_itself()
                 for when_s, msg in self.flight.drain_events():
-                    self._send(msg, when_s)
+                    self.send(msg, when_s)
                 for when_s, msg in self.flight.step_timed(dt_wall * self.speedup):
-                    self._send(msg, when_s)
+                    self.send(msg, when_s)
                 self._write_frames()
-                self._protocol_timers(now)
+                self.missions.timers(now)
             self._flush(self.clock.monotonic())
 
     def _write_frames(self) -> None:
@@ -500,10 +439,10 @@ class SimulatedVehicle:
         if ok:
             ok, why = self.flight.start_mission()
         if ok:
-            self._send_text(6, "Mission started (sfap sim --auto-start)")
+            self.send_text(6, "Mission started (sfap sim --auto-start)")
             log.info("simulated vehicle: armed and started the mission by itself")
         else:
-            self._send_text(3, why)
+            self.send_text(3, why)
             log.warning("simulated vehicle: could not start the mission: %s", why)
 
     def _receive_bytes(self, peer: object, data: bytes) -> None:
@@ -523,7 +462,7 @@ class SimulatedVehicle:
                 continue
             self._recv_pipe.offer(msg, now)
 
-    def _send(self, msg: Any, sim_time_s: float | None = None) -> None:
+    def send(self, msg: Any, sim_time_s: float | None = None) -> None:
         """Pack ``msg`` now (sequence number, tlog stamped at ``sim_time_s``, default now)
         and hand it to the faulty link."""
         data = bytes(msg.pack(self._mav))
@@ -544,14 +483,14 @@ class SimulatedVehicle:
             self._transport.send(data)
         self._transport.flush()
 
-    def _send_text(self, severity: int, text: str) -> None:
-        with self._lock:
-            self._send(M.MAVLink_statustext_message(severity, text.encode()[:50]))
+    def send_text(self, severity: int, text: str) -> None:
+        with self.lock:
+            self.send(M.MAVLink_statustext_message(severity, text.encode()[:50]))
 
-    def _warn_once(self, key: str, text: str) -> None:
+    def warn_once(self, key: str, text: str) -> None:
         if key not in self._warned:
             self._warned.add(key)
-            self._send_text(4, text)
+            self.send_text(4, text)
 
     # --- message handling --------------------------------------------------------------------
 
@@ -562,394 +501,13 @@ class SimulatedVehicle:
     def _handle(self, msg: Any) -> None:
         name = msg.get_type()
         self.received_counts[name] = self.received_counts.get(name, 0) + 1
-        handler: Callable[[Any], None] | None = getattr(self, f"_on_{name.lower()}", None)
+        handler: Callable[[Any], None] | None = getattr(self.missions, f"on_{name.lower()}", None) or getattr(
+            self.commands, f"on_{name.lower()}", None
+        )
         if handler is None or not self._for_us(msg):
             return
-        with self._lock:
+        with self.lock:
             handler(msg)
-
-    def _ack(self, msg: Any, result: int, mission_type: int) -> None:
-        self._send(
-            M.MAVLink_mission_ack_message(msg.get_srcSystem(), msg.get_srcComponent(), result, mission_type)
-        )
-
-    def _request(self, upload: _Upload) -> None:
-        if self.autopilot is Autopilot.ARDUPILOT:
-            req = M.MAVLink_mission_request_message(
-                upload.sysid, upload.compid, upload.expected, upload.mission_type
-            )
-        else:
-            req = M.MAVLink_mission_request_int_message(
-                upload.sysid, upload.compid, upload.expected, upload.mission_type
-            )
-        upload.last_request_s = self.clock.monotonic()
-        self._send(req)
-
-    def _items_for_readback(self, mission_type: int) -> list[WireItem]:
-        items = list(self._stored[mission_type])
-        if self.autopilot is Autopilot.ARDUPILOT and mission_type == MissionType.MISSION:
-            if not items:
-                items = [NO_HOME]
-            items[0] = self._home_item()
-        return items
-
-    def _home_item(self) -> WireItem:
-        return home_wire_item(self.flight.home if self.flight.gps_has_fix else None)
-
-    def _store(self, item: WireItem, mission_type: int) -> WireItem | int:
-        return store_item(item, self.autopilot, self.vehicle_type, mission_type)
-
-    def _mission_changed(self, mission_type: int) -> None:
-        if mission_type == MissionType.MISSION:
-            items = [wire_item_to_mission_item(w) for w in self._items_for_readback(0)]
-            self.flight.set_mission(items)
-
-    def _on_mission_count(self, msg: Any) -> None:
-        mission_type = int(getattr(msg, "mission_type", 0))
-        if mission_type not in MISSION_TYPES:
-            self._ack(msg, MissionResult.UNSUPPORTED, mission_type)
-            return
-        up = self._upload
-        if up is not None:
-            if (up.sysid, up.compid) != (msg.get_srcSystem(), msg.get_srcComponent()):
-                self._ack(msg, MissionResult.DENIED, mission_type)
-                return
-            self._upload = None  # the same ground station restarts its upload
-        ardupilot = self.autopilot is Autopilot.ARDUPILOT
-        if ardupilot and self.flight.time_s < self.boot_delay_s:
-            self._ack(msg, MissionResult.NO_SPACE, mission_type)
-            self._send_text(4, "Only 0 items are supported")
-            return
-        if (self.faults.refuse == Refusal.NO_SPACE and msg.count > 0) or msg.count > self.max_items:
-            self._ack(msg, MissionResult.NO_SPACE, mission_type)
-            if ardupilot:  # PX4 says nothing more than its NO_SPACE
-                self._send_text(4, f"Only {self.max_items} items are supported")
-            return
-        self._completed = None
-        if ardupilot:
-            # ArduPilot truncates at once and writes items as they arrive.
-            stored = self._stored[mission_type]
-            keep = max(msg.count, 1) if mission_type == MissionType.MISSION else msg.count
-            del stored[keep:]
-            self._mission_changed(mission_type)
-        if msg.count == 0:
-            if not ardupilot:
-                self._stored[mission_type] = []
-                self._mission_changed(mission_type)
-            self._ack(msg, MissionResult.ACCEPTED, mission_type)
-            return
-        now = self.clock.monotonic()
-        self._upload = _Upload(
-            mission_type=mission_type,
-            count=int(msg.count),
-            sysid=msg.get_srcSystem(),
-            compid=msg.get_srcComponent(),
-            last_receive_s=now,
-        )
-        self._request(self._upload)
-
-    def _on_mission_item(self, msg: Any) -> None:
-        if self.autopilot is Autopilot.ARDUPILOT and self._upload is not None:
-            self._warn_once("item", "got MISSION_ITEM; GCS should send MISSION_ITEM_INT")
-        self._on_mission_item_int(msg)
-
-    def _on_mission_item_int(self, msg: Any) -> None:
-        mission_type = int(getattr(msg, "mission_type", 0))
-        up = self._upload
-        ardupilot = self.autopilot is Autopilot.ARDUPILOT
-        if up is None or up.mission_type != mission_type:
-            done = self._completed
-            if (
-                not ardupilot
-                and done is not None
-                and done.mission_type == mission_type
-                and msg.seq == done.count - 1
-            ):
-                # PX4: the last item again means our ACK was lost; send it again.
-                self._ack(msg, done.result, mission_type)
-            return
-        if msg.seq != up.expected:
-            if ardupilot:
-                self._ack(msg, MissionResult.INVALID_SEQUENCE, mission_type)
-            return
-        if (msg.get_srcSystem(), msg.get_srcComponent()) != (up.sysid, up.compid):
-            self._ack(msg, MissionResult.DENIED, mission_type)
-            return
-        wire = wire_item_from_message(msg)
-        if self.faults.refuse == Refusal.INVALID and msg.seq == up.count // 2:
-            result: WireItem | int = MissionResult.INVALID
-        elif ardupilot and mission_type == MissionType.MISSION and msg.seq == 0:
-            result = NO_HOME  # home: ArduPilot keeps its own
-            if plain_wire_frame(wire.frame) == MavFrame.GLOBAL and (wire.x != 0 or wire.y != 0):
-                self._uploaded_home = HomePosition(
-                    lat_deg=e7_to_deg(wire.x), lon_deg=e7_to_deg(wire.y), alt_amsl_m=float(wire.z)
-                )
-        else:
-            result = self._store(wire, mission_type)
-        if isinstance(result, int):
-            self._upload = None
-            self._finish(msg, up, result)
-            return
-        up.last_receive_s = self.clock.monotonic()
-        if ardupilot:
-            stored = self._stored[mission_type]
-            if msg.seq < len(stored):
-                stored[msg.seq] = result
-            else:
-                stored.append(result)
-            # the flight reads the mission when the upload ends (_finish), not per item
-        else:
-            up.items.append(result)
-        up.expected += 1
-        if up.expected >= up.count:
-            self._upload = None
-            if not ardupilot:
-                self._stored[mission_type] = list(up.items)
-            self._finish(msg, up, MissionResult.ACCEPTED)
-            return
-        self._request(up)
-
-    def _follow_home(self, up: _Upload) -> None:
-        """``follow_mission_home``: move to the uploaded mission's home before the first flight."""
-        if not self.follow_mission_home or up.mission_type != MissionType.MISSION:
-            return
-        flight = self.flight
-        if flight.has_flown or flight.armed:
-            return
-        home = self._uploaded_home
-        if home is None and self.autopilot is Autopilot.PX4:
-            for wire in up.items:
-                if is_global_frame(wire.frame) and (wire.x != 0 or wire.y != 0):
-                    home = HomePosition(
-                        lat_deg=e7_to_deg(wire.x),
-                        lon_deg=e7_to_deg(wire.y),
-                        alt_amsl_m=flight.home.alt_amsl_m,
-                    )
-                    break
-        self._uploaded_home = None
-        if home is None or (home.lat_deg, home.lon_deg) == (flight.home.lat_deg, flight.home.lon_deg):
-            return
-        flight.move_home(home)
-        self.home = home
-        self._send_text(6, "sim: moved to the mission's home")
-        log.info(
-            "simulated vehicle: moved to the uploaded mission's home %.7f, %.7f, %.1f m AMSL",
-            home.lat_deg,
-            home.lon_deg,
-            home.alt_amsl_m,
-        )
-
-    def _finish(self, msg: Any, up: _Upload, result: int) -> None:
-        if result == MissionResult.ACCEPTED:
-            self._follow_home(up)
-        self._completed = _Completed(
-            up.mission_type, up.count, up.sysid, up.compid, result, self.clock.monotonic()
-        )
-        self._mission_changed(up.mission_type)
-        self._ack(msg, result, up.mission_type)
-        log.info(
-            "simulated vehicle: upload of %d items (type %d) ended with MAV_MISSION_RESULT %d",
-            up.count,
-            up.mission_type,
-            result,
-        )
-
-    def _protocol_timers(self, now: float) -> None:
-        up = self._upload
-        if up is None:
-            return
-        if now - up.last_receive_s > self.upload_timeout_s:
-            self._upload = None
-            self._completed = None
-            self._mission_changed(up.mission_type)
-            self._send(
-                M.MAVLink_mission_ack_message(
-                    up.sysid, up.compid, MissionResult.OPERATION_CANCELLED, up.mission_type
-                )
-            )
-            log.info("simulated vehicle: upload timed out at item %d of %d", up.expected, up.count)
-            return
-        if now - up.last_request_s > self.request_timeout_s:
-            self._request(up)
-
-    def _on_mission_request_list(self, msg: Any) -> None:
-        mission_type = int(getattr(msg, "mission_type", 0))
-        if mission_type not in MISSION_TYPES:
-            self._ack(msg, MissionResult.UNSUPPORTED, mission_type)
-            return
-        if self._upload is not None:
-            self._ack(msg, MissionResult.DENIED, mission_type)
-            return
-        count = len(self._items_for_readback(mission_type))
-        self._send(
-            M.MAVLink_mission_count_message(msg.get_srcSystem(), msg.get_srcComponent(), count, mission_type)
-        )
-
-    def _answer_request(self, msg: Any, as_int: bool) -> None:
-        mission_type = int(getattr(msg, "mission_type", 0))
-        if mission_type not in MISSION_TYPES:
-            self._ack(msg, MissionResult.UNSUPPORTED, mission_type)
-            return
-        if self._upload is not None:
-            if self.autopilot is Autopilot.ARDUPILOT or not as_int:
-                self._ack(msg, MissionResult.DENIED, mission_type)
-            # PX4 ignores requests during its own upload
-            return
-        items = self._items_for_readback(mission_type)
-        if not 0 <= msg.seq < len(items):
-            if as_int:
-                self._send(
-                    M.MAVLink_mission_count_message(
-                        msg.get_srcSystem(), msg.get_srcComponent(), len(items), mission_type
-                    )
-                )
-            self._ack(msg, MissionResult.INVALID_SEQUENCE, mission_type)
-            return
-        build = item_int_message if as_int else item_float_message
-        if not as_int and self.autopilot is Autopilot.ARDUPILOT:
-            self._warn_once("request", "got MISSION_REQUEST; use MISSION_REQUEST_INT!")
-        self._send(
-            build(
-                items[msg.seq],
-                msg.seq,
-                msg.get_srcSystem(),
-                msg.get_srcComponent(),
-                mission_type,
-            )
-        )
-
-    def _on_mission_request_int(self, msg: Any) -> None:
-        self._answer_request(msg, as_int=True)
-
-    def _on_mission_request(self, msg: Any) -> None:
-        self._answer_request(msg, as_int=False)
-
-    def _on_mission_ack(self, msg: Any) -> None:
-        # The end of a download (nothing to free here), or a ground station cancelling its
-        # upload with an error result: stop requesting items.
-        up = self._upload
-        source = (msg.get_srcSystem(), msg.get_srcComponent())
-        mission_type = int(getattr(msg, "mission_type", 0))
-        ours = up is not None and (up.sysid, up.compid) == source
-        if ours and up is not None and up.mission_type == mission_type and msg.type != 0:
-            self._upload = None
-            self._mission_changed(mission_type)
-            log.info("simulated vehicle: the ground station cancelled its upload")
-
-    def _on_mission_clear_all(self, msg: Any) -> None:
-        mission_type = int(getattr(msg, "mission_type", 0))
-        if mission_type not in MISSION_TYPES:
-            self._ack(msg, MissionResult.UNSUPPORTED, mission_type)
-            return
-        up = self._upload
-        if up is not None and (up.sysid, up.compid) != (
-            msg.get_srcSystem(),
-            msg.get_srcComponent(),
-        ):
-            self._ack(msg, MissionResult.ERROR, mission_type)
-            return
-        self._upload = None
-        self._stored[mission_type] = []
-        self._mission_changed(mission_type)
-        self._ack(msg, MissionResult.ACCEPTED, mission_type)
-
-    def _on_mission_set_current(self, msg: Any) -> None:
-        self.flight.set_current(int(msg.seq))
-
-    # --- commands ----------------------------------------------------------------------------
-
-    def _command_ack(self, msg: Any, command: int, result: int) -> None:
-        self._send(
-            M.MAVLink_command_ack_message(command, result, 0, 0, msg.get_srcSystem(), msg.get_srcComponent())
-        )
-
-    def _on_command_long(self, msg: Any) -> None:
-        command = int(msg.command)
-        params = (
-            msg.param1,
-            msg.param2,
-            msg.param3,
-            msg.param4,
-            msg.param5,
-            msg.param6,
-            msg.param7,
-        )
-        result = self._run_command(command, params)
-        self._command_ack(msg, command, result)
-
-    def _on_command_int(self, msg: Any) -> None:
-        command = int(msg.command)
-        params = (msg.param1, msg.param2, msg.param3, msg.param4, msg.x, msg.y, msg.z)
-        result = self._run_command(command, params)
-        self._command_ack(msg, command, result)
-
-    def _run_command(self, command: int, params: Sequence[float]) -> int:
-        accepted, denied = M.MAV_RESULT_ACCEPTED, M.MAV_RESULT_DENIED
-        failed, unsupported = M.MAV_RESULT_FAILED, M.MAV_RESULT_UNSUPPORTED
-        flight = self.flight
-        if command == 400:  # MAV_CMD_COMPONENT_ARM_DISARM
-            if params[0] >= 0.5:
-                ok, why = flight.arm()
-            else:
-                ok, why = flight.disarm(force=abs(params[1] - 21196) < 0.5)
-            if not ok:
-                self._send_text(3, why)
-            return accepted if ok else failed
-        if command == 176:  # MAV_CMD_DO_SET_MODE
-            ok = flight.set_mode(int(params[0]), int(params[1]), int(params[2]))
-            return accepted if ok else denied
-        if command == 300:  # MAV_CMD_MISSION_START
-            ok, why = flight.start_mission()
-            if not ok:
-                self._send_text(3, why)
-            return accepted if ok else failed
-        if command == 224:  # MAV_CMD_DO_SET_MISSION_CURRENT
-            seq = int(params[0])
-            if not 0 <= seq < len(flight.mission.items):
-                return denied
-            flight.set_current(seq)
-            return accepted
-        if command == 20:  # MAV_CMD_NAV_RETURN_TO_LAUNCH
-            return accepted if flight.return_to_launch() else failed
-        if command in (512, 520):  # REQUEST_MESSAGE / REQUEST_AUTOPILOT_CAPABILITIES
-            if command == 520 or int(params[0]) == 148:
-                self._send(self._autopilot_version())
-                return accepted
-            if int(params[0]) == 242:  # HOME_POSITION
-                home = flight.home_position_message()
-                if home is None:
-                    return failed
-                self._send(home)
-                return accepted
-            return unsupported
-        if command == 511:  # MAV_CMD_SET_MESSAGE_INTERVAL (param1 message id, param2 interval us)
-            ok = flight.set_message_interval(int(params[0]), float(params[1]))
-            return accepted if ok else unsupported
-        if command == 2504:  # REQUEST_CAMERA_INFORMATION
-            return accepted
-        return unsupported
-
-    def _autopilot_version(self) -> Any:
-        # MAV_PROTOCOL_CAPABILITY: MISSION_FLOAT 1, MISSION_INT 4, COMMAND_INT 8,
-        # MAVLINK2 8192, MISSION_FENCE 16384, MISSION_RALLY 32768
-        capabilities = 1 | 4 | 8 | 8192 | 16384 | 32768
-        version = (
-            (4 << 24) | (5 << 16) | (7 << 8)
-            if self.autopilot is Autopilot.ARDUPILOT
-            else ((1 << 24) | (15 << 16))
-        )
-        return M.MAVLink_autopilot_version_message(
-            capabilities, version, 0, 0, 0, [0] * 8, [0] * 8, [0] * 8, 0, 0, 0xF00D
-        )
-
-    def _on_set_mode(self, msg: Any) -> None:
-        self.flight.set_mode(int(msg.base_mode), *self.flight.split_custom_mode(msg.custom_mode))
-
-    def _on_request_data_stream(self, msg: Any) -> None:
-        # No answer, as ArduPilot: the streams start (or stop), that is all.
-        self.flight.request_data_stream(
-            int(msg.req_stream_id), float(msg.req_message_rate), bool(msg.start_stop)
-        )
 
 
 def serve(
