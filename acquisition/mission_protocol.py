@@ -7,7 +7,7 @@ The protocol (mavlink.io "Mission Protocol"; REFERENCES.md section 3):
   as often as it likes; we answer each with MISSION_ITEM_INT; the vehicle ends with
   MISSION_ACK. When the vehicle goes quiet for ``timeout_s`` we repeat our last message
   (MISSION_COUNT, or the last item) up to ``retries`` times. Just after boot ArduPilot refuses
-  an upload with MAV_MISSIONMissionResult.NO_SPACE ("Only 0 items are supported") and accepts it a moment
+  an upload with MAV_MISSION_NO_SPACE ("Only 0 items are supported") and accepts it a moment
   later: that refusal, before any item was requested, is retried after a pause.
 - Download (:func:`receive_items`): MISSION_REQUEST_LIST -> MISSION_COUNT
   (:func:`request_count`), then MISSION_REQUEST_INT per item -> MISSION_ITEM_INT, then our
@@ -285,7 +285,7 @@ def _capacity_said(session: Session, *, deadline_s: float) -> int | None:
 
 def _too_large(url: str, count: int, capacity: int | None, session: Session) -> MissionTooLargeError:
     if capacity is None:
-        size = f"the mission's {count} items do not fit this vehicle (MAV_MISSIONMissionResult.NO_SPACE)"
+        size = f"the mission's {count} items do not fit this vehicle (MAV_MISSION_NO_SPACE)"
     else:
         size = (
             f"the mission has {count} items (home included) and this vehicle holds at most {capacity}: "

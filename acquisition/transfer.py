@@ -350,7 +350,7 @@ def request_home_position(
                 return home_from_message(message)
             if (
                 int(message.command) == mavlink2.MAV_CMD_REQUEST_MESSAGE
-                and int(message.result) != mavlink2.MAV_RESULTMissionResult.ACCEPTED
+                and int(message.result) != mavlink2.MAV_RESULT_ACCEPTED
             ):
                 return None  # refused: no home yet, or the message is not supported
     return None
