@@ -1,7 +1,11 @@
 """The simulated vehicle's commands: COMMAND_LONG and COMMAND_INT (arm, modes, mission start,
 set current, return to launch, message requests and intervals), SET_MODE and
 REQUEST_DATA_STREAM, answered as ArduPilot or PX4 do (COMMAND_ACK; no answer to
-REQUEST_DATA_STREAM, as ArduPilot)."""
+REQUEST_DATA_STREAM, as ArduPilot).
+
+:class:`VehicleCommands` is a base of :class:`~acquisition.simulator.server.SimulatedVehicle`:
+a test vehicle with other firmware behaviour overrides its ``_run_command`` or ``_on_*``
+handlers."""
 
 from __future__ import annotations
 
@@ -13,23 +17,29 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 from planner.mission import Autopilot
 
 if TYPE_CHECKING:
-    from .server import SimulatedVehicle
+    from .flight import FlightSimulator
 
 M = mavlink2
 
 
 class VehicleCommands:
-    """How ``vehicle`` answers commands; the vehicle hands it each message under its lock."""
+    """How the vehicle answers commands (its ``_on_*`` handlers run under its lock)."""
 
-    def __init__(self, vehicle: SimulatedVehicle) -> None:
-        self.vehicle = vehicle
+    autopilot: Autopilot
+    flight: FlightSimulator
+
+    def send(self, msg: Any, sim_time_s: float | None = None) -> None:
+        raise NotImplementedError
+
+    def send_text(self, severity: int, text: str) -> None:
+        raise NotImplementedError
 
     def _command_ack(self, msg: Any, command: int, result: int) -> None:
-        self.vehicle.send(
+        self.send(
             M.MAVLink_command_ack_message(command, result, 0, 0, msg.get_srcSystem(), msg.get_srcComponent())
         )
 
-    def on_command_long(self, msg: Any) -> None:
+    def _on_command_long(self, msg: Any) -> None:
         command = int(msg.command)
         params = (
             msg.param1,
@@ -43,7 +53,7 @@ class VehicleCommands:
         result = self._run_command(command, params)
         self._command_ack(msg, command, result)
 
-    def on_command_int(self, msg: Any) -> None:
+    def _on_command_int(self, msg: Any) -> None:
         command = int(msg.command)
         params = (msg.param1, msg.param2, msg.param3, msg.param4, msg.x, msg.y, msg.z)
         result = self._run_command(command, params)
@@ -52,14 +62,14 @@ class VehicleCommands:
     def _run_command(self, command: int, params: Sequence[float]) -> int:
         accepted, denied = M.MAV_RESULT_ACCEPTED, M.MAV_RESULT_DENIED
         failed, unsupported = M.MAV_RESULT_FAILED, M.MAV_RESULT_UNSUPPORTED
-        flight = self.vehicle.flight
+        flight = self.flight
         if command == 400:  # MAV_CMD_COMPONENT_ARM_DISARM
             if params[0] >= 0.5:
                 ok, why = flight.arm()
             else:
                 ok, why = flight.disarm(force=abs(params[1] - 21196) < 0.5)
             if not ok:
-                self.vehicle.send_text(3, why)
+                self.send_text(3, why)
             return accepted if ok else failed
         if command == 176:  # MAV_CMD_DO_SET_MODE
             ok = flight.set_mode(int(params[0]), int(params[1]), int(params[2]))
@@ -67,7 +77,7 @@ class VehicleCommands:
         if command == 300:  # MAV_CMD_MISSION_START
             ok, why = flight.start_mission()
             if not ok:
-                self.vehicle.send_text(3, why)
+                self.send_text(3, why)
             return accepted if ok else failed
         if command == 224:  # MAV_CMD_DO_SET_MISSION_CURRENT
             seq = int(params[0])
@@ -79,13 +89,13 @@ class VehicleCommands:
             return accepted if flight.return_to_launch() else failed
         if command in (512, 520):  # REQUEST_MESSAGE / REQUEST_AUTOPILOT_CAPABILITIES
             if command == 520 or int(params[0]) == 148:
-                self.vehicle.send(self._autopilot_version())
+                self.send(self._autopilot_version())
                 return accepted
             if int(params[0]) == 242:  # HOME_POSITION
                 home = flight.home_position_message()
                 if home is None:
                     return failed
-                self.vehicle.send(home)
+                self.send(home)
                 return accepted
             return unsupported
         if command == 511:  # MAV_CMD_SET_MESSAGE_INTERVAL (param1 message id, param2 interval us)
@@ -101,20 +111,18 @@ class VehicleCommands:
         capabilities = 1 | 4 | 8 | 8192 | 16384 | 32768
         version = (
             (4 << 24) | (5 << 16) | (7 << 8)
-            if self.vehicle.autopilot is Autopilot.ARDUPILOT
+            if self.autopilot is Autopilot.ARDUPILOT
             else ((1 << 24) | (15 << 16))
         )
         return M.MAVLink_autopilot_version_message(
             capabilities, version, 0, 0, 0, [0] * 8, [0] * 8, [0] * 8, 0, 0, 0xF00D
         )
 
-    def on_set_mode(self, msg: Any) -> None:
-        self.vehicle.flight.set_mode(
-            int(msg.base_mode), *self.vehicle.flight.split_custom_mode(msg.custom_mode)
-        )
+    def _on_set_mode(self, msg: Any) -> None:
+        self.flight.set_mode(int(msg.base_mode), *self.flight.split_custom_mode(msg.custom_mode))
 
-    def on_request_data_stream(self, msg: Any) -> None:
+    def _on_request_data_stream(self, msg: Any) -> None:
         # No answer, as ArduPilot: the streams start (or stop), that is all.
-        self.vehicle.flight.request_data_stream(
+        self.flight.request_data_stream(
             int(msg.req_stream_id), float(msg.req_message_rate), bool(msg.start_stop)
         )

@@ -106,7 +106,7 @@ _POLL_S = 0.002
 # --- the vehicle --------------------------------------------------------------------------------
 
 
-class SimulatedVehicle:
+class SimulatedVehicle(VehicleCommands):
     """A simulated ArduPilot or PX4 vehicle on a MAVLink URL (see the module docstring).
 
     Parameters: ``url`` where to listen (``tcpin://HOST:PORT``, ``udpin://HOST:PORT``, port 0
@@ -207,7 +207,6 @@ class SimulatedVehicle:
         self.follow_mission_home = follow_mission_home
         self.frames = frames
         self.missions = VehicleMissions(self)
-        self.commands = VehicleCommands(self)
         self._transport: Transport | None = None
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()
@@ -502,7 +501,7 @@ class SimulatedVehicle:
         name = msg.get_type()
         self.received_counts[name] = self.received_counts.get(name, 0) + 1
         handler: Callable[[Any], None] | None = getattr(self.missions, f"on_{name.lower()}", None) or getattr(
-            self.commands, f"on_{name.lower()}", None
+            self, f"_on_{name.lower()}", None
         )
         if handler is None or not self._for_us(msg):
             return
