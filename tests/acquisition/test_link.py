@@ -208,19 +208,21 @@ def test_identifies_the_vehicle(autopilot: Autopilot, vehicle_type: VehicleType)
 
 def test_udp_link_to_the_vehicle() -> None:
     # the vehicle listens (udpin); we send first (udpout), so it learns where to answer
-    with SimulatedVehicle(url="udpin://127.0.0.1:0", autopilot=Autopilot.PX4) as vehicle:
+    clock = VirtualClock()
+    with SimulatedVehicle(url="udpin://127.0.0.1:0", autopilot=Autopilot.PX4, clock=clock) as vehicle:
         url = vehicle.url_for_client
         assert url.startswith("udpout://")
-        with Link.open(url, heartbeat_timeout_s=5.0) as link:
+        with Link.open(url, heartbeat_timeout_s=5.0, clock=clock) as link:
             assert link.autopilot is Autopilot.PX4
             assert link.recv({"HEARTBEAT"}, timeout_s=3.0) is not None
 
 
 def test_udpin_link_hears_a_vehicle_that_sends_to_us() -> None:
     port = free_port(socket.SOCK_DGRAM)
+    clock = VirtualClock()
     with (
-        SimulatedVehicle(url=f"udpout://127.0.0.1:{port}", autopilot=Autopilot.ARDUPILOT),
-        Link.open(f"udpin://127.0.0.1:{port}", heartbeat_timeout_s=5.0) as link,
+        SimulatedVehicle(url=f"udpout://127.0.0.1:{port}", autopilot=Autopilot.ARDUPILOT, clock=clock),
+        Link.open(f"udpin://127.0.0.1:{port}", heartbeat_timeout_s=5.0, clock=clock) as link,
     ):
         assert link.autopilot is Autopilot.ARDUPILOT
         assert link.target_system == 1
