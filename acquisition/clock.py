@@ -119,6 +119,9 @@ class VirtualClock:
         self._utc_offset = (time.time() if utc_start_s is None else utc_start_s) - self._now
         self._lock = threading.Lock()
         self._parties: dict[threading.Thread, int] = {}  # party -> times joined
+        # parties seen running (they joined themselves or waited): only those can have ended;
+        # one joined before it starts is not alive yet while it starts, and must not be lost
+        self._running: set[threading.Thread] = set()
         self._waiting: dict[threading.Thread, _Waiter] = {}
         self._pipes: dict[threading.Thread, tuple[int, int]] = {}  # wake-up pipe of each waiter
         self.advances = 0  # how many times time jumped (for tests)
@@ -137,6 +140,8 @@ class VirtualClock:
         party = threading.current_thread() if thread is None else thread
         with self._lock:
             self._parties[party] = self._parties.get(party, 0) + 1
+            if thread is None:
+                self._running.add(party)
         return party
 
     def leave(self, token: object) -> None:
@@ -145,6 +150,7 @@ class VirtualClock:
             count = self._parties.get(token, 0) - 1
             if count <= 0:
                 self._parties.pop(token, None)
+                self._running.discard(token)
                 self._release_pipe(token)
             else:
                 self._parties[token] = count
@@ -191,6 +197,8 @@ class VirtualClock:
     def _wait(self, fds: list[int], timeout_s: float, event: threading.Event | None) -> bool:
         ident = threading.current_thread()
         with self._lock:
+            if ident in self._parties:
+                self._running.add(ident)
             wake_r, wake_w = self._wake_pipe(ident)
             waiter = _Waiter(
                 deadline=self._now + max(timeout_s, 0.0),
@@ -238,9 +246,10 @@ class VirtualClock:
     def _advance_if_idle(self) -> None:
         """When every party waits, nobody is woken but not yet running, and no byte is in
         flight to a waiter: jump to the earliest deadline and wake who waits for it."""
-        for thread in list(self._parties):
-            if thread.ident is not None and not thread.is_alive():  # ended without leaving
+        for thread in list(self._running):
+            if not thread.is_alive():  # a party that ended without leaving
                 self._parties.pop(thread, None)
+                self._running.discard(thread)
                 self._release_pipe(thread)
         if not self._waiting:
             return
