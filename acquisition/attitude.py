@@ -84,6 +84,24 @@ def euler_deg_from_quat(q: ArrayLike) -> tuple[F64, F64, F64]:
     )
 
 
+def roll_pitch_yaw_deg_from_quaternion(
+    w: ArrayLike, x: ArrayLike, y: ArrayLike, z: ArrayLike
+) -> tuple[F64, F64, F64]:
+    """(roll, pitch, yaw) in degrees, Tait-Bryan z-y'-x'' (yaw, then pitch, then roll), of the
+    rotation from body (FRD) to local NED given as quaternion components (w, x, y, z) of any
+    equal shapes, the convention of MAVLink and PX4. Yaw is 0-360 clockwise from north; the
+    quaternion need not be unit (a zero quaternion reads as no rotation). At pitch +-90 (a gimbal
+    looking straight down) the roll is 0 and the yaw carries the whole turn
+    (:func:`euler_deg_from_quat`)."""
+    q = np.stack([np.asarray(a, dtype=np.float64) for a in np.broadcast_arrays(w, x, y, z)], axis=-1)
+    flat = np.atleast_2d(q.reshape(-1, 4)).copy()
+    zero = np.linalg.norm(flat, axis=1) == 0
+    flat[zero] = (1.0, 0.0, 0.0, 0.0)
+    yaw, pitch, roll = euler_deg_from_quat(flat)
+    shape = q.shape[:-1]
+    return roll.reshape(shape)[()], pitch.reshape(shape)[()], yaw.reshape(shape)[()]
+
+
 def quat_from_yaw_deg(yaw_deg: ArrayLike) -> F64:
     """Rotations about the down axis by ``yaw_deg`` (clockwise seen from above), (N, 4)."""
     half = np.radians(np.asarray(yaw_deg, float)) / 2.0

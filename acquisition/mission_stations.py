@@ -14,7 +14,8 @@ sections 2, 3 and 6):
 
 Each camera-on stretch is a *line* (``line_index``); a station's heading is the bearing of the
 leg it lies on (NaN for a photo at a waypoint where the path turns: any course then matches).
-The match radius is half the trigger distance, at least :data:`acquisition.monitor.MIN_MATCH_RADIUS_M`.
+The match radius is half the trigger distance, at least
+:data:`acquisition.station_tracker.MIN_MATCH_RADIUS_M`.
 Distances are measured in the UTM zone of the mission's first waypoint (within 0.1 % of the
 sphere ArduPilot uses; the count may differ by one photo at the end of a line where the plan
 itself has no margin).
@@ -31,9 +32,41 @@ from planner.geo import LocalFrame
 from planner.mission import MavCmd, MissionItem
 
 from .mavlink_items import is_global_frame
+from .station_tracker import MIN_MATCH_RADIUS_M, StationPlan
 
-#: Smallest match radius (m): as acquisition.monitor's.
-_MIN_RADIUS_M = 5.0
+
+def distance_trigger_fractions(
+    start: tuple[float, float],
+    end: tuple[float, float],
+    last_photo: tuple[float, float],
+    distance_m: float,
+    *,
+    tolerance: float,
+) -> list[float]:
+    """Fractions ``s`` (0..1 + ``tolerance``) of the straight piece start->end at which distance
+    triggering fires: each the smallest ``s`` at or after the previous one where the horizontal
+    straight-line distance from the last photo (``last_photo``, then each new one) reaches
+    ``distance_m``, as AP_Camera decides, solved exactly (a quadratic in ``s``). Coordinates in
+    metres of one plane frame."""
+    bx, by = end[0] - start[0], end[1] - start[1]
+    a = bx * bx + by * by
+    if a == 0.0 or distance_m <= 0:
+        return []
+    out: list[float] = []
+    last = last_photo
+    s0 = 0.0
+    while True:
+        # smallest s >= s0 where |start + s b - last| = d
+        ax, ay = start[0] + s0 * bx - last[0], start[1] + s0 * by - last[1]
+        b = 2 * (ax * bx + ay * by)
+        c = ax * ax + ay * ay - distance_m * distance_m
+        u = 0.0 if c >= 0 else (-b + math.sqrt(b * b - 4 * a * c)) / (2 * a)
+        s = s0 + u
+        if s > 1.0 + tolerance:
+            return out
+        out.append(s)
+        last = (start[0] + s * bx, start[1] + s * by)
+        s0 = s
 
 
 def replay_stations(
@@ -91,36 +124,26 @@ def replay_stations(
                 heading = (grid - frame.true_north_grid_bearing_deg(item.lon_deg, item.lat_deg)) % 360.0
                 if last_photo is None:
                     last_photo = pos
-                s0 = 0.0
-                while True:
-                    # smallest s >= s0 where |pos + s b - last_photo| = d
-                    ax, ay = pos[0] + s0 * bx - last_photo[0], pos[1] + s0 * by - last_photo[1]
-                    a = bx * bx + by * by
-                    b = 2 * (ax * bx + ay * by)
-                    c = ax * ax + ay * ay - distance_m * distance_m
-                    u = 0.0 if c >= 0 else (-b + math.sqrt(b * b - 4 * a * c)) / (2 * a)
-                    s = s0 + u
-                    if s > 1.0 + 1e-9:
-                        break
+                for s in distance_trigger_fractions(pos, (tx, ty), last_photo, distance_m, tolerance=1e-9):
                     photo(pos[0] + s * bx, pos[1] + s * by, heading)
-                    s0 = s
         pos = (tx, ty)
     return out, frame
 
 
-def station_columns(
-    items: Sequence[MissionItem],
-) -> dict[str, np.ndarray]:
-    """The columns of :class:`acquisition.monitor.StationPlan` for the stations of ``items``."""
+def mission_station_plan(items: Sequence[MissionItem]) -> StationPlan | None:
+    """The :class:`StationPlan` of the stations of ``items`` (None: the mission takes no photo)."""
     rows, _ = replay_stations(items)
+    if not rows:
+        return None
     a = np.array(rows, dtype=np.float64).reshape(-1, 5)
     d = a[:, 4]
-    radius = np.where(np.isfinite(d), np.maximum(d / 2.0, _MIN_RADIUS_M), _MIN_RADIUS_M)
-    return {
-        "lat_deg": a[:, 0].copy(),
-        "lon_deg": a[:, 1].copy(),
-        "pass_index": np.zeros(len(a), dtype=np.int64),
-        "line_index": a[:, 2].astype(np.int64),
-        "heading_deg": a[:, 3].copy(),
-        "match_radius_m": radius,
-    }
+    return StationPlan(
+        name="the vehicle's mission",
+        lat_deg=a[:, 0].copy(),
+        lon_deg=a[:, 1].copy(),
+        pass_index=np.zeros(len(a), dtype=np.int64),
+        line_index=a[:, 2].astype(np.int64),
+        heading_deg=a[:, 3].copy(),
+        match_radius_m=np.where(np.isfinite(d), np.maximum(d / 2.0, MIN_MATCH_RADIUS_M), MIN_MATCH_RADIUS_M),
+        trigger_distance_m=None,
+    )

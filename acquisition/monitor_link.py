@@ -19,10 +19,10 @@
   CAMERA_IMAGE_CAPTURED need no request: autopilots send them at every photo.
 - :class:`MissionFollower`: reads the mission the vehicle holds (MISSION_REQUEST_LIST, the
   mission protocol) at the start and whenever MISSION_CURRENT says it changed (another total
-  or mission_id, :meth:`FlightRecorder._watch_mission`), once it has been quiet for
-  :data:`MISSION_QUIET_S`, in a worker thread fed by the main loop. When the mission read is
-  the plan folder's own mission, the plan's stations stay; otherwise the stations become those
-  of the vehicle's mission (:mod:`acquisition.mission_stations`).
+  or mission_id, :meth:`acquisition.flight_recorder.FlightRecorder._watch_mission`), once it
+  has been quiet for :data:`MISSION_QUIET_S`, in a worker thread fed by the main loop. When the
+  mission read is the plan folder's own mission, the plan's stations stay; otherwise the
+  stations become those of the vehicle's mission (:mod:`acquisition.mission_stations`).
 """
 
 from __future__ import annotations
@@ -35,24 +35,29 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from pymavlink.dialects.v20 import ardupilotmega as mavlink2
-
 from planner.mission import Autopilot, MissionItem
 
+from . import mavlink_messages as mm
 from .errors import AcquisitionError, LinkError
 
 log = logging.getLogger(__name__)
 
 #: What the monitor asks for: message name -> (message id, rate Hz, required).
 WANTED_STREAMS: dict[str, tuple[int, float, bool]] = {
-    "GLOBAL_POSITION_INT": (33, 10.0, True),
-    "ATTITUDE": (30, 10.0, True),
-    "SYSTEM_TIME": (2, 1.0, True),
-    "MISSION_CURRENT": (42, 1.0, True),
-    "EXTENDED_SYS_STATE": (245, 1.0, False),
+    name: (mm.MESSAGE_ID[name], rate_hz, required)
+    for name, rate_hz, required in (
+        ("GLOBAL_POSITION_INT", 10.0, True),
+        ("ATTITUDE", 10.0, True),
+        ("SYSTEM_TIME", 1.0, True),
+        ("MISSION_CURRENT", 1.0, True),
+        ("EXTENDED_SYS_STATE", 1.0, False),
+    )
 }
-#: REQUEST_DATA_STREAM groups (MAV_DATA_STREAM) of the wanted messages, as ArduPilot files them.
-LEGACY_GROUP = {"GLOBAL_POSITION_INT": 6, "ATTITUDE": 10, "SYSTEM_TIME": 12, "MISSION_CURRENT": 2}
+#: REQUEST_DATA_STREAM groups (MAV_DATA_STREAM) of the wanted messages, as ArduPilot files them
+#: (EXTENDED_SYS_STATE is in none).
+LEGACY_GROUP = {
+    name: mm.ARDUPILOT_STREAM_GROUP[name] for name in WANTED_STREAMS if name in mm.ARDUPILOT_STREAM_GROUP
+}
 #: Wall seconds to wait for the COMMAND_ACK of a SET_MESSAGE_INTERVAL.
 ACK_TIMEOUT_S = 1.5
 #: Wall seconds after asking before the streams are checked (and again before warning).
@@ -63,7 +68,6 @@ MISSION_QUIET_S = 2.0
 MISSION_RETRY_S = 3.0
 MISSION_ATTEMPTS = 5
 
-_SET_MESSAGE_INTERVAL = 511
 _MISSION_TYPES = frozenset({"MISSION_COUNT", "MISSION_ITEM_INT", "MISSION_ITEM", "MISSION_ACK", "STATUSTEXT"})
 
 
@@ -124,18 +128,8 @@ class StreamRequests:
         self._stage = 0
         for name, (message_id, rate_hz, _) in WANTED_STREAMS.items():
             link.send(
-                mavlink2.MAVLink_command_long_message(
-                    link.target_system,
-                    link.target_component,
-                    _SET_MESSAGE_INTERVAL,
-                    0,
-                    float(message_id),
-                    1e6 / rate_hz,
-                    0,
-                    0,
-                    0,
-                    0,
-                    0,
+                mm.set_message_interval_message(
+                    link.target_system, link.target_component, message_id, rate_hz
                 )
             )
             self._pending.append((name, now))
@@ -146,8 +140,8 @@ class StreamRequests:
         for group in groups:
             rate = max(int(WANTED_STREAMS[n][1]) for n, g in LEGACY_GROUP.items() if g == group)
             self.link.send(
-                mavlink2.MAVLink_request_data_stream_message(
-                    self.link.target_system, self.link.target_component, group, rate, 1
+                mm.request_data_stream_message(
+                    self.link.target_system, self.link.target_component, group, rate
                 )
             )
         self._legacy_sent.update(names)
@@ -156,10 +150,10 @@ class StreamRequests:
 
     def on_command_ack(self, msg: Any) -> None:
         """A COMMAND_ACK from the vehicle: the answers come in the order of the requests."""
-        if int(msg.command) != _SET_MESSAGE_INTERVAL or not self._pending:
+        if int(msg.command) != mm.MAV_CMD_SET_MESSAGE_INTERVAL or not self._pending:
             return
         name, _ = self._pending.pop(0)
-        if int(msg.result) != 0:  # not MAV_RESULT_ACCEPTED
+        if int(msg.result) != mm.MAV_RESULT_ACCEPTED:
             log.info("the vehicle refused SET_MESSAGE_INTERVAL for %s (MAV_RESULT %d)", name, int(msg.result))
             if self.link is not None:
                 self._legacy([name])

@@ -43,9 +43,10 @@ from pyproj import CRS
 
 from planner.camera import Camera
 from planner.geo import LocalFrame
-from processing.coverage import Grid, count_raster, write_geotiff
+from processing.coverage import Grid, count_raster
 from processing.footprints import project_footprints
 from processing.frames import AltitudeReference, AttitudeSource, Frames
+from processing.geotiff import write_geotiff
 from processing.ground import FlatGround
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -67,7 +68,8 @@ SFAP_SCRIPT = """
 import json, sys
 import numpy as np
 from pyproj import CRS
-from processing.coverage import Grid, count_raster, write_geotiff
+from processing.coverage import Grid, count_raster
+from processing.geotiff import write_geotiff
 west, north, cell, rows, cols, epsg = json.loads(sys.argv[3])
 with open(sys.argv[1]) as handle:
     features = json.load(handle)["features"]

@@ -83,7 +83,7 @@ def run_case(spec: Path, out: Path) -> dict[str, float]:
         "t0 = time.perf_counter()\n"
         "from planner.spec import load_spec\n"
         "from planner.survey import plan_survey\n"
-        "from planner.export import write_outputs\n"
+        "from planner.plan_folder import write_outputs\n"
         "t1 = time.perf_counter()\n"
         f"plan = plan_survey(load_spec({str(spec)!r}))\n"
         "t2 = time.perf_counter()\n"

@@ -39,7 +39,7 @@ def run_case(spec: Path, out: Path, sorties: bool) -> dict[str, float]:
         "t0 = time.perf_counter()\n"
         "from planner.spec import load_spec\n"
         "from planner.survey import plan_survey\n"
-        "from planner.export import write_outputs\n"
+        "from planner.plan_folder import write_outputs\n"
         "from planner.sorties import split_sorties, write_with_sorties\n"
         "t1 = time.perf_counter()\n"
         f"plan = plan_survey(load_spec({str(spec)!r}))\n"

@@ -53,3 +53,7 @@ class MissionFileError(InputError):
 
 class MissionValidationError(SfapError):
     """A mission failed validation and must not be sent to a vehicle."""
+
+
+class PlanFolderError(InputError):
+    """A plan folder (``sfap plan -o DIR``) lacks a file or holds one that cannot be read."""

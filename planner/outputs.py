@@ -4,6 +4,7 @@
   the same folder and ``os.replace``.
 - :func:`staged_output_dir`: a whole output folder, built in a temporary sibling folder and
   moved into place only when everything in it was written.
+- :func:`json_safe`: a value made fit for strict JSON (every JSON file and ``--json`` output).
 
 Nothing is overwritten unless the caller passes ``overwrite=True`` (the CLI's ``--overwrite``).
 """
@@ -11,11 +12,14 @@ Nothing is overwritten unless the caller passes ``overwrite=True`` (the CLI's ``
 from __future__ import annotations
 
 import contextlib
+import math
 import os
 import shutil
+import sys
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 from .errors import OutputExistsError
 
@@ -91,3 +95,22 @@ def staged_output_dir(target: str | os.PathLike[str], *, overwrite: bool = False
         shutil.rmtree(backup, ignore_errors=True)
     else:
         os.replace(staging, final)
+
+
+def json_safe(value: Any) -> Any:
+    """``value`` made fit for strict JSON (``json.dumps(..., allow_nan=False)``): NaN and
+    infinities as None (JSON has no NaN), numpy scalars and arrays as Python numbers and lists,
+    tuples as lists, mapping keys as strings; anything else as it is."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {str(k): json_safe(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [json_safe(v) for v in value]
+    numpy = sys.modules.get("numpy")  # no numpy value exists unless numpy was imported
+    if numpy is not None:
+        if isinstance(value, numpy.ndarray):
+            return json_safe(value.tolist())
+        if isinstance(value, numpy.generic):
+            return json_safe(value.item())
+    return value

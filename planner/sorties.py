@@ -468,8 +468,8 @@ def write_with_sorties(
     sortie's own files in ``out_dir/sortie-NN/``; all or nothing."""
     import json
 
-    from .export import summary_json, write_outputs
     from .outputs import atomic_write_text, staged_output_dir
+    from .plan_folder import summary_json, write_outputs
 
     final = Path(out_dir)
     written: list[Path] = []

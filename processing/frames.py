@@ -16,8 +16,10 @@ from enum import StrEnum
 
 import numpy as np
 from numpy.typing import NDArray
+from pyproj import CRS
 
 from planner.camera import Camera
+from planner.geo import LocalFrame
 
 F64 = NDArray[np.float64]
 
@@ -95,3 +97,23 @@ class Frames:
             exposure_s=take(self.exposure_s),
             line_index=line,
         )
+
+
+def local_frame_at(lon_deg: float, lat_deg: float) -> LocalFrame:
+    """A transverse Mercator frame (WGS84, scale 1) centred on a point, metres east and north.
+
+    Grid north is true north along its central meridian, so a bearing (a camera's yaw, a
+    flight heading) is a grid bearing to within the meridian convergence a few kilometres
+    away (0.01 deg at 1 km): unlike a UTM zone, whose grid north is off true north by up to
+    3 deg at the zone's edges, which would turn every footprint about its camera. Distances
+    are true to 1e-8 within a few kilometres.
+    """
+    crs = CRS.from_proj4(
+        f"+proj=tmerc +lat_0={lat_deg!r} +lon_0={lon_deg!r} +k=1 +x_0=0 +y_0=0 +datum=WGS84 +units=m +no_defs"
+    )
+    return LocalFrame.from_crs(crs)
+
+
+def frames_local_frame(frames: Frames) -> LocalFrame:
+    """The frame a check of ``frames`` works in: :func:`local_frame_at` their median position."""
+    return local_frame_at(float(np.median(frames.lon_deg)), float(np.median(frames.lat_deg)))

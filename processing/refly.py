@@ -32,7 +32,7 @@ from planner.survey import plan_polygons
 from .errors import ProcessingError
 
 if TYPE_CHECKING:
-    from .check import CheckResult
+    from .check_result import CheckResult
 
 log = logging.getLogger(__name__)
 
@@ -148,20 +148,20 @@ def refly_mission(gaps_lonlat: Sequence[Polygon], params: ReflyParameters) -> Su
 def refly_parameters(result: CheckResult) -> ReflyParameters:
     """Re-fly as the plan did when the check had one, else with the frames' camera at their
     median height above ground and the planner's default overlaps (80/70 %)."""
-    plan = result.plan
-    if plan is not None:
+    if result.plan is not None:
+        planned, home = result.plan.planned.summary, result.plan.planned.home
         return ReflyParameters(
-            camera=plan.camera,
-            orientation=plan.orientation,
-            altitude_agl_m=plan.altitude_agl_m,
-            front_overlap_pct=plan.front_overlap_pct,
-            side_overlap_pct=plan.side_overlap_pct,
-            speed_m_s=plan.speed_m_s,
-            home_lat_deg=plan.home_lat_deg,
-            home_lon_deg=plan.home_lon_deg,
-            home_alt_amsl_m=plan.home_alt_amsl_m or 0.0,
-            max_alt_agl_m=max(120.0, plan.altitude_agl_m),
-            name=f"{plan.name} re-fly",
+            camera=result.plan.camera,
+            orientation=result.plan.planned.orientation,
+            altitude_agl_m=planned.altitude_agl_m,
+            front_overlap_pct=planned.front_overlap_pct,
+            side_overlap_pct=planned.side_overlap_pct,
+            speed_m_s=planned.speed_m_s,
+            home_lat_deg=home.lat_deg if home else None,
+            home_lon_deg=home.lon_deg if home else None,
+            home_alt_amsl_m=(home.alt_amsl_m if home else None) or 0.0,
+            max_alt_agl_m=max(120.0, planned.altitude_agl_m),
+            name=f"{planned.name} re-fly",
         )
     heights = result.height_agl_m[np.isfinite(result.height_agl_m) & (result.height_agl_m > 0)]
     altitude = float(np.round(np.median(heights), 1)) if heights.size else 0.0

@@ -4,7 +4,7 @@ transit) are left out of coverage, GSD and scale statistics and listed with the 
 A card holds what the camera shot from power-on to power-off: frames on the pad before take-off,
 on the climb, on the way to the area and back. Counted as survey frames they stretch the block,
 open false gaps, and put a GSD of 0.03 cm at the bottom of the report's range. The rules, on the
-heights above the ground chosen for the check (:mod:`processing.inputs`) and the positions:
+heights above the ground chosen for the check (:mod:`processing.ground_choice`) and the positions:
 
 - at most :data:`ON_GROUND_M` above the ground: on the ground (take-off, landing, the pad);
 - more than (1 - :data:`LOW_RATIO`) x the median height below the median altitude of the

@@ -16,11 +16,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .errors import ProcessingError
-from .inputs import PlanInfo
+from .plan_frames import PlanInfo
 
 if TYPE_CHECKING:
     # The result types live with the check that builds them; only their figures are read here.
-    from .check import Distribution, Gap
+    from .check_result import Gap
+    from .distribution import Distribution
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -303,8 +304,8 @@ def judge(
         )
     if plan is not None:
         for what, dist, planned in (
-            ("forward", forward_overlap_pct, plan.front_overlap_pct),
-            ("side", side_overlap_pct, plan.side_overlap_pct),
+            ("forward", forward_overlap_pct, plan.planned.summary.front_overlap_pct),
+            ("side", side_overlap_pct, plan.planned.summary.side_overlap_pct),
         ):
             if dist is not None and dist.median < planned - t.max_overlap_shortfall_pct:
                 reasons.append(

@@ -10,7 +10,7 @@ from __future__ import annotations
 import importlib
 import os
 import sys
-from typing import Any
+from typing import Any, Protocol, runtime_checkable
 
 import click
 
@@ -30,6 +30,13 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "handoff": ("handoff", "Hand the frames to COLMAP, ODM, NodeODM, Metashape or Pix4D; run and measure."),
     "gcp-plan": ("gcp_plan", "Lay out ground control and check points over a planned survey."),
 }
+
+
+@runtime_checkable
+class Verdict(Protocol):
+    """What a command that judges returns (``sfap check``: a CheckResult): exit 1 unless it passed."""
+
+    passed: bool
 
 
 def _debug_detail() -> None:
@@ -86,7 +93,7 @@ class LazyGroup(click.Group):
 
     def invoke(self, ctx: click.Context) -> Any:
         try:
-            return super().invoke(ctx)
+            result = super().invoke(ctx)
         except SfapError as error:
             _debug_detail()
             click.echo(f"error: {error}", err=True)
@@ -100,6 +107,9 @@ class LazyGroup(click.Group):
         except KeyboardInterrupt:
             click.echo("interrupted", err=True)
             ctx.exit(130)
+        if isinstance(result, Verdict) and not result.passed:
+            ctx.exit(1)  # the command presented the problems it found
+        return result
 
 
 def _print_version(ctx: click.Context, _param: click.Parameter, value: bool) -> None:

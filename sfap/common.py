@@ -3,13 +3,15 @@
 from __future__ import annotations
 
 import json
-import math
 import sys
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from pathlib import Path
 from typing import Any, TypeVar
 
 import click
+
+from planner.outputs import json_safe
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -21,22 +23,53 @@ overwrite_option = click.option(
 )
 
 
-def _clean(value: Any) -> Any:
-    """JSON has no NaN: None instead, and numpy scalars as Python numbers."""
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    if isinstance(value, dict):
-        return {k: _clean(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_clean(v) for v in value]
-    item = getattr(value, "item", None)
-    if callable(item):  # numpy scalars
-        return _clean(item())
-    return value
+def connect_options(function: F) -> F:
+    """The options of every command that talks to a vehicle, defined once: --connect (the URL
+    carries a serial port's baud rate), --signing-key, --require-signing (MAVLink 2 signing)
+    and --heartbeat-timeout-s."""
+    from acquisition.signing import SIGNING_KEY_ENV  # here: only vehicle commands import pymavlink
+
+    options = (
+        click.option(
+            "--connect",
+            "url",
+            required=True,
+            metavar="URL",
+            help=(
+                "How to reach the vehicle: serial:///dev/ttyUSB0:57600 (device:baud), "
+                "udpin://0.0.0.0:14550, udpout://HOST:PORT, tcp://HOST:PORT or tcpin://HOST:PORT."
+            ),
+        ),
+        click.option(
+            "--signing-key",
+            "signing_key_file",
+            type=click.Path(dir_okay=False, path_type=Path),
+            default=None,
+            help=(
+                "MAVLink 2 signing key file: 32 raw bytes, 64 hex digits, or a passphrase "
+                f"(SHA-256, as MAVProxy). Default: ${SIGNING_KEY_ENV} if set, else no signing."
+            ),
+        ),
+        click.option(
+            "--require-signing",
+            is_flag=True,
+            help="Refuse unsigned messages from the vehicle (needs a key).",
+        ),
+        click.option(
+            "--heartbeat-timeout-s",
+            type=click.FloatRange(min=0.1),
+            default=10.0,
+            show_default=True,
+            help="Seconds to wait for the vehicle's heartbeat when connecting.",
+        ),
+    )
+    for option in reversed(options):
+        function = option(function)
+    return function
 
 
 def dumps_json(data: Any) -> str:
-    return json.dumps(_clean(data), indent=2, allow_nan=False)
+    return json.dumps(json_safe(data), indent=2, allow_nan=False)
 
 
 def echo_json(data: Any) -> None:

@@ -9,7 +9,7 @@ format        recognised by                                               reader
 ``dataflash`` DataFlash message header 0xA3 0x95 and the FMT type 0x80    :mod:`.dataflash`
 ``tlog``      8-byte big-endian receive time (microseconds, 2001-2100)     :mod:`.tlog`
               followed by a MAVLink 1 (0xFE) or 2 (0xFD) frame
-``gpx``       a ``<gpx`` element                                          :mod:`.tracks`
+``gpx``       a ``<gpx`` element                                          :mod:`.gpx`
 ``csv``       a header row of a GPS track layout (exiftool's: GPSLatitude  :mod:`.tracks`
               and GPSDateTime; an autopilot's GPS export: CSV_LAYOUTS)
 ``mrk``       a DJI ``photo tow [week] n,N`` line                         :mod:`.mrk`
@@ -139,7 +139,7 @@ def read_log(path: str | os.PathLike[str], progress: ReadProgress | None = None)
 
         log = read_ulog(path)
     elif fmt == "gpx":
-        from .tracks import read_gpx
+        from .gpx import read_gpx
 
         log = read_gpx(path)
     elif fmt == "csv":

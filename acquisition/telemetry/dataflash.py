@@ -44,8 +44,17 @@ from numpy.typing import NDArray
 
 from ..errors import TelemetryError
 from .gpstime import BootClock, fit_boot_clock, gps_week_ms_to_utc_s, time_order
-from .model import PROGRESS_STEP_BYTES, AttitudeTrack, CameraEvents, FlightLog, PositionTrack, ReadProgress
-from .tlog import yaw_to_earth_deg
+from .model import (
+    PROGRESS_STEP_BYTES,
+    AttitudeTrack,
+    CameraEvents,
+    FlightLog,
+    PositionTrack,
+    ReadProgress,
+    assemble_log,
+    gimbal_track,
+    position_track,
+)
 
 log = logging.getLogger(__name__)
 
@@ -312,30 +321,17 @@ def _positions(t: dict[str, _Columns], clock: BootClock | None) -> PositionTrack
         time_utc = clock.utc_s(boot)
         lat, lon = pos.col("Lat"), pos.col(_field(pos.names, "Lng", "Lon") or "Lng")
         keep = ~((lat == 0) & (lon == 0))
-        o = time_order(np.where(keep, time_utc, np.nan))
         rel_f = _field(pos.names, "RelHomeAlt", "RelAlt")
-        return PositionTrack(
-            time_utc_s=time_utc[o],
-            lat_deg=lat[o],
-            lon_deg=lon[o],
-            alt_amsl_m=pos.col("Alt")[o],
-            alt_rel_home_m=pos.col(rel_f)[o] if rel_f else None,
-            source="dataflash:POS",
-        )
+        rel = pos.col(rel_f) if rel_f else None
+        return position_track(time_utc, (lat, lon), pos.col("Alt"), rel, "dataflash:POS", keep=keep)
     gps = t.get("GPS")
     if gps is not None and len(gps) and (boot := _boot_s(gps)) is not None:
         time_utc = clock.utc_s(boot)
         ok = gps.col("Status") >= _GPS_3D_FIX if gps.has("Status") else np.ones(len(gps), bool)
         if gps.has("I"):
             ok &= gps.col("I") == 0
-        o = time_order(np.where(ok, time_utc, np.nan))
-        return PositionTrack(
-            time_utc_s=time_utc[o],
-            lat_deg=gps.col("Lat")[o],
-            lon_deg=gps.col(_field(gps.names, "Lng", "Lon") or "Lng")[o],
-            alt_amsl_m=gps.col("Alt")[o],
-            source="dataflash:GPS",
-        )
+        lat_lon = (gps.col("Lat"), gps.col(_field(gps.names, "Lng", "Lon") or "Lng"))
+        return position_track(time_utc, lat_lon, gps.col("Alt"), None, "dataflash:GPS", keep=ok)
     return None
 
 
@@ -372,23 +368,12 @@ def _gimbal(
     if yaw_f is None:
         return None, [f"{path}: MNT without a yaw ({mnt.names}); gimbal left out"]
     # YawE is earth-frame; YawB (and the old Yaw) are relative to the vehicle's nose.
-    yaw = mnt.angle_deg(yaw_f)
-    if yaw_f != "YawE":
-        yaw_e = yaw_to_earth_deg(yaw, time_utc, vehicle)
-        if yaw_e is None:
-            return None, [f"{path}: MNT yaw is body-frame and there is no ATT; gimbal left out"]
-        yaw = yaw_e
-    o = time_order(time_utc)
-    return (
-        AttitudeTrack(
-            time_utc_s=time_utc[o],
-            roll_deg=mnt.angle_deg(roll_f)[o],
-            pitch_deg=mnt.angle_deg(pitch_f)[o],
-            yaw_deg=np.mod(yaw[o], 360.0),
-            source="dataflash:MNT",
-        ),
-        [],
-    )
+    rpy = (mnt.angle_deg(roll_f), mnt.angle_deg(pitch_f), mnt.angle_deg(yaw_f))
+    earth = np.full(len(time_utc), yaw_f == "YawE")
+    track = gimbal_track(time_utc, rpy, earth, vehicle, "dataflash:MNT")
+    if track is None:
+        return None, [f"{path}: MNT yaw is body-frame and there is no ATT; gimbal left out"]
+    return track, []
 
 
 _SKIPPED = re.compile(r"Skipped (\d+) bad bytes in log at offset (\d+)")
@@ -425,21 +410,4 @@ def read_dataflash(path: str | os.PathLike[str], progress: ReadProgress | None =
         if size and end == 0:
             raise TelemetryError(f"{p}: no DataFlash message could be read ({size} bytes)")
         warnings.append(f"{p}: none of {', '.join(_TYPES)} in the log")
-    clock, w = _clock(p, tables)
-    warnings += w
-    events, w = _events(p, tables, clock)
-    warnings += w
-    attitudes = _attitudes(tables, clock)
-    gimbal, w = _gimbal(p, tables, clock, attitudes)
-    warnings += w
-    for w_ in warnings:
-        log.warning("%s", w_)
-    return FlightLog(
-        path=p,
-        format="dataflash",
-        events=events,
-        positions=_positions(tables, clock),
-        attitudes=attitudes,
-        gimbal=gimbal,
-        warnings=tuple(warnings),
-    )
+    return assemble_log(p, "dataflash", warnings, tables, _clock, _events, _attitudes, _gimbal, _positions)

@@ -6,11 +6,20 @@ time order. A column the source does not carry is ``None`` (never NaN-filled or 
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from typing import TypeVar
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
+
+from .gpstime import time_order
+
+log = logging.getLogger(__name__)
+
+S = TypeVar("S")  # what a reader parsed (tables, a ULog)
+C = TypeVar("C")  # its clock: boot time -> UTC
 
 F64 = NDArray[np.float64]
 
@@ -89,3 +98,110 @@ class FlightLog:
     attitudes: AttitudeTrack | None = None
     gimbal: AttitudeTrack | None = None
     warnings: tuple[str, ...] = field(default=())
+
+
+# --- what every reader does with them -----------------------------------------------------------
+
+
+def yaw_to_earth_deg(
+    rel_yaw_deg: ArrayLike, time_utc_s: ArrayLike, vehicle: AttitudeTrack | None
+) -> F64 | None:
+    """Earth-frame yaw (0-360 clockwise from north) of a yaw measured relative to the vehicle
+    heading, using the vehicle's yaw interpolated (along the shorter arc) at the same times.
+    None when there is no vehicle attitude to add."""
+    if vehicle is None or len(vehicle) == 0:
+        return None
+    unwrapped = np.degrees(np.unwrap(np.radians(vehicle.yaw_deg)))
+    veh = np.interp(np.asarray(time_utc_s, dtype=np.float64), vehicle.time_utc_s, unwrapped)
+    return np.mod(np.asarray(rel_yaw_deg, dtype=np.float64) + veh, 360.0)
+
+
+def position_track(
+    time_utc_s: F64,
+    lat_lon_deg: tuple[ArrayLike, ArrayLike],
+    alt_amsl_m: ArrayLike | None,
+    alt_rel_home_m: ArrayLike | None,
+    source: str,
+    keep: ArrayLike | None = None,
+) -> PositionTrack:
+    """A :class:`PositionTrack` of the rows in time order, those with ``keep`` False (no fix,
+    another receiver) or no finite time left out; columns as float64, None where not logged."""
+    o = time_order(time_utc_s if keep is None else np.where(keep, time_utc_s, np.nan))
+
+    def column(values: ArrayLike | None) -> F64 | None:
+        return None if values is None else np.asarray(values, dtype=np.float64)[o]
+
+    lat, lon = (np.asarray(v, dtype=np.float64)[o] for v in lat_lon_deg)
+    rest = {"alt_amsl_m": column(alt_amsl_m), "alt_rel_home_m": column(alt_rel_home_m)}
+    return PositionTrack(time_utc_s=time_utc_s[o], lat_deg=lat, lon_deg=lon, source=source, **rest)
+
+
+def gimbal_track(
+    time_utc_s: F64,
+    rpy_deg: tuple[F64, F64, F64],
+    yaw_in_earth_frame: NDArray[np.bool_],
+    vehicle: AttitudeTrack | None,
+    source: str,
+) -> AttitudeTrack | None:
+    """A gimbal's :class:`AttitudeTrack` (``rpy_deg``: roll, pitch, yaw) in time order with an
+    earth-frame yaw: where ``yaw_in_earth_frame`` is False the yaw is relative to the vehicle's
+    nose and the vehicle's yaw is added (:func:`yaw_to_earth_deg`). None when such a yaw has no
+    vehicle attitude to add (the reader says so in its warnings). Rows with a NaN time are left
+    out."""
+    roll_deg, pitch_deg, yaw_deg = rpy_deg
+    yaw = yaw_deg
+    if not np.all(yaw_in_earth_frame):
+        yaw_e = yaw_to_earth_deg(yaw_deg, time_utc_s, vehicle)
+        if yaw_e is None:
+            return None
+        yaw = np.where(yaw_in_earth_frame, yaw_deg, yaw_e)
+    o = time_order(time_utc_s)
+    return AttitudeTrack(
+        time_utc_s=time_utc_s[o],
+        roll_deg=roll_deg[o],
+        pitch_deg=pitch_deg[o],
+        yaw_deg=np.mod(yaw[o], 360.0),
+        source=source,
+    )
+
+
+def flight_log(
+    path: str,
+    fmt: str,
+    warnings: list[str],
+    *,
+    events: CameraEvents | None = None,
+    positions: PositionTrack | None = None,
+    attitudes: AttitudeTrack | None = None,
+    gimbal: AttitudeTrack | None = None,
+) -> FlightLog:
+    """The :class:`FlightLog` a reader returns, its warnings logged once here."""
+    for warning in warnings:
+        log.warning("%s", warning)
+    tracks = FlightLog(path=path, format=fmt, positions=positions, attitudes=attitudes, gimbal=gimbal)
+    return replace(tracks, events=events, warnings=tuple(warnings))
+
+
+def assemble_log(
+    path: str,
+    fmt: str,
+    warnings: list[str],
+    source: S,
+    clock: Callable[[str, S], tuple[C, list[str]]],
+    events: Callable[[str, S, C], tuple[CameraEvents | None, list[str]]],
+    attitudes: Callable[[S, C], AttitudeTrack | None],
+    gimbal: Callable[[str, S, C, AttitudeTrack | None], tuple[AttitudeTrack | None, list[str]]],
+    positions: Callable[[S, C], PositionTrack | None],
+) -> FlightLog:
+    """The steps of a reader whose log carries a boot clock, in order: the clock onto UTC, the
+    camera events, the vehicle's attitudes, the gimbal (its yaw made earth-frame with those
+    attitudes) and the positions; each step's warnings are added to ``warnings``."""
+    utc, notes = clock(path, source)
+    warnings += notes
+    camera, notes = events(path, source, utc)
+    warnings += notes
+    vehicle = attitudes(source, utc)
+    mount, notes = gimbal(path, source, utc, vehicle)
+    warnings += notes
+    track = positions(source, utc)
+    return flight_log(path, fmt, warnings, events=camera, positions=track, attitudes=vehicle, gimbal=mount)

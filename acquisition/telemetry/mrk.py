@@ -25,7 +25,6 @@ event altitudes stay None there and a warning says so.
 
 from __future__ import annotations
 
-import logging
 import os
 import re
 from dataclasses import dataclass
@@ -35,9 +34,7 @@ from numpy.typing import NDArray
 
 from ..errors import TelemetryError
 from .gpstime import gps_week_tow_to_utc_s, time_order
-from .model import CameraEvents, FlightLog
-
-log = logging.getLogger(__name__)
+from .model import CameraEvents, FlightLog, flight_log
 
 F64 = NDArray[np.float64]
 
@@ -156,17 +153,7 @@ def read_mrk(path: str | os.PathLike[str]) -> FlightLog:
             for s in np.unique(table.rtk_status[not_fixed])
         )
         warnings.append(f"{p}: {int(not_fixed.sum())} of {len(table)} photos not RTK fixed ({kinds})")
-    for w in warnings:
-        log.warning("%s", w)
-    return FlightLog(
-        path=p,
-        format="mrk",
-        events=CameraEvents(
-            time_utc_s=table.time_utc_s,
-            seq=table.seq,
-            lat_deg=table.lat_deg,
-            lon_deg=table.lon_deg,
-            source="mrk",
-        ),
-        warnings=tuple(warnings),
+    events = CameraEvents(
+        time_utc_s=table.time_utc_s, seq=table.seq, lat_deg=table.lat_deg, lon_deg=table.lon_deg, source="mrk"
     )
+    return flight_log(p, "mrk", warnings, events=events)

@@ -36,28 +36,24 @@ from collections import Counter
 from dataclasses import dataclass, field
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import NDArray
 
-from ..attitude import euler_deg_from_quat
+from .. import mavlink_messages as mm
+from ..attitude import roll_pitch_yaw_deg_from_quaternion
 from ..errors import TelemetryError
-from .gpstime import BootClock, fit_boot_clock, gps_usec_to_utc_s, time_order
+from . import model
+from .gpstime import BootClock, fit_boot_clock, time_order
 from .model import PROGRESS_STEP_BYTES, AttitudeTrack, CameraEvents, FlightLog, PositionTrack, ReadProgress
 
 log = logging.getLogger(__name__)
 
 F64 = NDArray[np.float64]
 
-# Below this many microseconds (about 3.2 years) a time_usec is time since boot.
-BOOT_US_LIMIT = 100_000_000_000_000
-# A reboot: time_boot_ms falls back by more than this.
-_REBOOT_BACKSTEP_MS = 5_000
-_MAV_AUTOPILOT_INVALID = 8
+# A reboot: time_boot_ms falls back by more than this (s).
+_REBOOT_BACKSTEP_S = 5.0
 # Messages other components of the vehicle send (a MAVLink camera, a gimbal device); the
 # others are taken only from the autopilot.
 _FROM_PAYLOADS = {"CAMERA_IMAGE_CAPTURED", "GIMBAL_DEVICE_ATTITUDE_STATUS"}
-_GIMBAL_YAW_LOCK = 16
-_GIMBAL_YAW_IN_VEHICLE_FRAME = 32
-_GIMBAL_YAW_IN_EARTH_FRAME = 64
 
 _WANTED = (
     "SYSTEM_TIME",
@@ -72,41 +68,13 @@ _WANTED = (
 )
 
 
-def euler_deg_from_quaternion(w: ArrayLike, x: ArrayLike, y: ArrayLike, z: ArrayLike) -> tuple[F64, F64, F64]:
-    """(roll, pitch, yaw) in degrees, Tait-Bryan z-y'-x'' (yaw, then pitch, then roll), of the
-    rotation from body (FRD) to local NED given as a quaternion (w, x, y, z), the convention of
-    MAVLink and PX4. Yaw is 0-360 clockwise from north; the quaternion need not be unit (a zero
-    quaternion reads as no rotation). At pitch +-90 (a gimbal looking straight down) the roll is
-    0 and the yaw carries the whole turn (:func:`acquisition.attitude.euler_deg_from_quat`)."""
-    q = np.stack([np.asarray(a, dtype=np.float64) for a in np.broadcast_arrays(w, x, y, z)], axis=-1)
-    flat = np.atleast_2d(q.reshape(-1, 4)).copy()
-    zero = np.linalg.norm(flat, axis=1) == 0
-    flat[zero] = (1.0, 0.0, 0.0, 0.0)
-    yaw, pitch, roll = euler_deg_from_quat(flat)
-    shape = q.shape[:-1]
-    return roll.reshape(shape)[()], pitch.reshape(shape)[()], yaw.reshape(shape)[()]
-
-
-def yaw_to_earth_deg(
-    rel_yaw_deg: ArrayLike, time_utc_s: ArrayLike, vehicle: AttitudeTrack | None
-) -> F64 | None:
-    """Earth-frame yaw (0-360 clockwise from north) of a yaw measured relative to the vehicle
-    heading, using the vehicle's yaw interpolated (along the shorter arc) at the same times.
-    None when there is no vehicle attitude to add."""
-    if vehicle is None or len(vehicle) == 0:
-        return None
-    unwrapped = np.degrees(np.unwrap(np.radians(vehicle.yaw_deg)))
-    veh = np.interp(np.asarray(time_utc_s, dtype=np.float64), vehicle.time_utc_s, unwrapped)
-    return np.mod(np.asarray(rel_yaw_deg, dtype=np.float64) + veh, 360.0)
-
-
 @dataclass
 class _Reading:
     """What one pass over the file collected (lists of tuples, one per message)."""
 
     rows: dict[str, list[tuple[float, ...]]] = field(default_factory=dict)
     boot_segment: int = 0
-    last_boot_ms: float | None = None
+    last_boot_s: float | None = None
     n_messages: int = 0
     n_bad: int = 0
     first_bad_at: int | None = None
@@ -117,16 +85,16 @@ class _Reading:
     ignored: Counter[tuple[int, int]] = field(default_factory=Counter)
 
 
-def _receive_boot_ms(r: _Reading) -> float:
-    """The vehicle's boot time when the current message arrived (the last one seen), NaN
+def _receive_boot_s(r: _Reading) -> float:
+    """The vehicle's boot time (s) when the current message arrived (the last one seen), NaN
     before any message carried one."""
-    return math.nan if r.last_boot_ms is None else r.last_boot_ms
+    return math.nan if r.last_boot_s is None else r.last_boot_s
 
 
-def _note_boot(r: _Reading, boot_ms: float) -> None:
-    if r.last_boot_ms is not None and boot_ms < r.last_boot_ms - _REBOOT_BACKSTEP_MS:
+def _note_boot(r: _Reading, boot_s: float) -> None:
+    if r.last_boot_s is not None and boot_s < r.last_boot_s - _REBOOT_BACKSTEP_S:
         r.boot_segment += 1
-    r.last_boot_ms = boot_ms
+    r.last_boot_s = boot_s
 
 
 def _collect(path: str, progress: ReadProgress | None = None) -> _Reading:
@@ -160,8 +128,10 @@ def _collect(path: str, progress: ReadProgress | None = None) -> _Reading:
             r.n_messages += 1
             r.last_good_end = conn.f.tell()
             src = (int(msg.get_srcSystem()), int(msg.get_srcComponent()))
-            if mtype == "HEARTBEAT" and r.vehicle is None and msg.autopilot != _MAV_AUTOPILOT_INVALID:
-                r.vehicle = src  # the first autopilot heard; GCS, gimbals, cameras send INVALID
+            if mtype == "HEARTBEAT" and r.vehicle is None:
+                heartbeat = mm.decode(msg)
+                if isinstance(heartbeat, mm.Heartbeat) and heartbeat.is_autopilot:
+                    r.vehicle = src  # the first autopilot heard; GCS, gimbals, cameras send INVALID
             if mtype not in _WANTED:
                 continue
             # Until the autopilot's first HEARTBEAT every source is taken as the vehicle.
@@ -170,127 +140,83 @@ def _collect(path: str, progress: ReadProgress | None = None) -> _Reading:
             if not (same_system if mtype in _FROM_PAYLOADS else from_vehicle):
                 r.ignored[src] += 1
                 continue
-            rx_s = float(msg._timestamp)
-            seg = float(r.boot_segment)
-            if mtype == "SYSTEM_TIME":
-                _note_boot(r, float(msg.time_boot_ms))
-                seg = float(r.boot_segment)
-                r.rows[mtype].append((rx_s, seg, float(msg.time_boot_ms), float(msg.time_unix_usec)))
-            elif mtype == "CAMERA_FEEDBACK":
-                r.cam_idx[int(msg.cam_idx)] += 1
-                r.rows[mtype].append(
-                    (
-                        rx_s,
-                        seg,
-                        _receive_boot_ms(r),
-                        float(msg.time_usec),
-                        float(msg.img_idx),
-                        msg.lat * 1e-7,
-                        msg.lng * 1e-7,
-                        float(msg.alt_msl),
-                        float(msg.alt_rel),
-                        float(msg.roll),
-                        float(msg.pitch),
-                        float(msg.yaw),
-                    )
-                )
-            elif mtype == "CAMERA_TRIGGER":
-                r.rows[mtype].append((rx_s, seg, _receive_boot_ms(r), float(msg.time_usec), float(msg.seq)))
-            elif mtype == "CAMERA_IMAGE_CAPTURED":
-                if int(msg.capture_result) != 1:
-                    r.failed_captures += 1
-                    continue
-                q = list(msg.q)
-                # A camera component's time_boot_ms counts from its own boot: only the
-                # autopilot's is on the clock SYSTEM_TIME maps; otherwise the arrival time.
-                boot_ms = float(msg.time_boot_ms) if from_vehicle else _receive_boot_ms(r)
-                r.rows[mtype].append(
-                    (
-                        rx_s,
-                        seg,
-                        boot_ms,
-                        float(msg.time_utc),
-                        float(msg.image_index),
-                        msg.lat * 1e-7,
-                        msg.lon * 1e-7,
-                        msg.alt * 1e-3,
-                        msg.relative_alt * 1e-3,
-                        *(float(v) for v in q),
-                    )
-                )
-            elif mtype == "GLOBAL_POSITION_INT":
-                _note_boot(r, float(msg.time_boot_ms))
-                if msg.lat == 0 and msg.lon == 0:
-                    continue  # no position yet
-                r.rows[mtype].append(
-                    (
-                        rx_s,
-                        float(r.boot_segment),
-                        float(msg.time_boot_ms),
-                        msg.lat * 1e-7,
-                        msg.lon * 1e-7,
-                        msg.alt * 1e-3,
-                        msg.relative_alt * 1e-3,
-                    )
-                )
-            elif mtype == "GPS_RAW_INT":
-                if msg.fix_type < 2 or (msg.lat == 0 and msg.lon == 0):
-                    continue
-                r.rows[mtype].append(
-                    (
-                        rx_s,
-                        seg,
-                        _receive_boot_ms(r),
-                        float(msg.time_usec),
-                        msg.lat * 1e-7,
-                        msg.lon * 1e-7,
-                        msg.alt * 1e-3,
-                    )
-                )
-            elif mtype == "ATTITUDE":
-                _note_boot(r, float(msg.time_boot_ms))
-                r.rows[mtype].append(
-                    (
-                        rx_s,
-                        float(r.boot_segment),
-                        float(msg.time_boot_ms),
-                        math.degrees(msg.roll),
-                        math.degrees(msg.pitch),
-                        math.degrees(msg.yaw),
-                    )
-                )
-            elif mtype == "MOUNT_STATUS":
-                # ArduPilot: pointing_a pitch, pointing_b roll, pointing_c yaw relative to the
-                # vehicle, centidegrees. No time field: the arrival time stands in.
-                r.rows[mtype].append(
-                    (
-                        rx_s,
-                        seg,
-                        _receive_boot_ms(r),
-                        msg.pointing_b * 1e-2,
-                        msg.pointing_a * 1e-2,
-                        msg.pointing_c * 1e-2,
-                    )
-                )
-            elif mtype == "GIMBAL_DEVICE_ATTITUDE_STATUS":
-                # Sent by the autopilot for its own mount drivers, or by a MAVLink gimbal
-                # device whose time_boot_ms is its own clock (then the arrival time is used).
-                if from_vehicle:
-                    _note_boot(r, float(msg.time_boot_ms))
-                boot_ms = float(msg.time_boot_ms) if from_vehicle else _receive_boot_ms(r)
-                q = list(msg.q)
-                r.rows[mtype].append(
-                    (
-                        rx_s,
-                        float(r.boot_segment),
-                        boot_ms,
-                        float(msg.flags),
-                        *(float(v) for v in q),
-                    )
-                )
+            _add_row(r, mm.decode(msg), float(msg._timestamp), from_vehicle)
     finally:
         conn.close()
     return r
+
+
+def _add_row(r: _Reading, m: mm.Record | None, rx_s: float, from_vehicle: bool) -> None:
+    """One decoded message as a row of its table: (receive time, boot segment, boot time s, ...)."""
+    if isinstance(m, mm.SystemTime | mm.GlobalPosition | mm.Attitude) or (
+        isinstance(m, mm.GimbalAttitude) and from_vehicle
+    ):
+        _note_boot(r, m.time_boot_s)
+    seg = float(r.boot_segment)
+    rx_boot_s = _receive_boot_s(r)
+    if isinstance(m, mm.SystemTime):
+        r.rows["SYSTEM_TIME"].append((rx_s, seg, m.time_boot_s, m.time_utc_s or 0.0))
+    elif isinstance(m, mm.CameraFeedback):
+        r.cam_idx[m.camera_index] += 1
+        r.rows["CAMERA_FEEDBACK"].append(
+            (
+                rx_s,
+                seg,
+                rx_boot_s,
+                float(m.time_usec),
+                float(m.image_index),
+                m.lat_deg,
+                m.lon_deg,
+                m.alt_amsl_m,
+                m.alt_rel_home_m,
+                m.roll_deg,
+                m.pitch_deg,
+                m.yaw_deg,
+            )
+        )
+    elif isinstance(m, mm.CameraTrigger):
+        r.rows["CAMERA_TRIGGER"].append((rx_s, seg, rx_boot_s, float(m.time_usec), float(m.seq)))
+    elif isinstance(m, mm.CameraImageCaptured):
+        if not m.captured:
+            r.failed_captures += 1
+            return
+        # A camera component's time_boot_ms counts from its own boot: only the autopilot's is
+        # on the clock SYSTEM_TIME maps; otherwise the arrival time.
+        boot_s = m.time_boot_s if from_vehicle else rx_boot_s
+        r.rows["CAMERA_IMAGE_CAPTURED"].append(
+            (
+                rx_s,
+                seg,
+                boot_s,
+                m.time_utc_s or 0.0,
+                float(m.image_index),
+                m.lat_deg,
+                m.lon_deg,
+                m.alt_amsl_m,
+                m.alt_rel_home_m,
+                *m.q,
+            )
+        )
+    elif isinstance(m, mm.GlobalPosition):
+        if m.has_position:  # else no position yet
+            r.rows["GLOBAL_POSITION_INT"].append(
+                (rx_s, seg, m.time_boot_s, m.lat_deg, m.lon_deg, m.alt_amsl_m, m.alt_rel_home_m)
+            )
+    elif isinstance(m, mm.GpsRaw):
+        if m.has_fix:
+            r.rows["GPS_RAW_INT"].append(
+                (rx_s, seg, rx_boot_s, float(m.time_usec), m.lat_deg, m.lon_deg, m.alt_amsl_m)
+            )
+    elif isinstance(m, mm.Attitude):
+        r.rows["ATTITUDE"].append((rx_s, seg, m.time_boot_s, m.roll_deg, m.pitch_deg, m.yaw_deg))
+    elif isinstance(m, mm.MountStatus):
+        # no time field: the arrival time stands in
+        r.rows["MOUNT_STATUS"].append((rx_s, seg, rx_boot_s, m.roll_deg, m.pitch_deg, m.yaw_rel_deg))
+    elif isinstance(m, mm.GimbalAttitude):
+        # Sent by the autopilot for its own mount drivers, or by a MAVLink gimbal device whose
+        # time_boot_ms is its own clock (then the arrival time is used).
+        boot_s = m.time_boot_s if from_vehicle else rx_boot_s
+        r.rows["GIMBAL_DEVICE_ATTITUDE_STATUS"].append((rx_s, seg, boot_s, float(m.flags), *m.q))
 
 
 @dataclass
@@ -321,7 +247,7 @@ def _boot_clock(path: str, r: _Reading) -> _Clock:
     for seg in np.unique(st[:, 1]):
         sel = valid & (st[:, 1] == seg)
         if sel.any():
-            fit = fit_boot_clock(st[sel, 2] / 1e3, st[sel, 3] / 1e6)
+            fit = fit_boot_clock(st[sel, 2], st[sel, 3])
             fits[int(seg)] = fit
             log.debug("%s boot %d: %s", path, int(seg), fit)
             if fit.residual_rms_s > 0.05:
@@ -337,7 +263,7 @@ def _boot_clock(path: str, r: _Reading) -> _Clock:
     for name in ("ATTITUDE", "GLOBAL_POSITION_INT", "SYSTEM_TIME"):
         for row in r.rows[name]:
             segs_needed.add(int(row[1]))
-            pairs.setdefault(int(row[1]), []).append((row[2] / 1e3, row[0]))
+            pairs.setdefault(int(row[1]), []).append((row[2], row[0]))
     for seg in sorted(segs_needed - set(fits)):
         p = np.array(pairs[seg])
         fallback[seg] = fit_boot_clock(p[:, 0], p[:, 1])
@@ -348,36 +274,27 @@ def _boot_clock(path: str, r: _Reading) -> _Clock:
     return _Clock(fits=fits, fallback=fallback, warnings=warnings)
 
 
-def _time_usec_to_utc(time_usec: F64, seg: F64, rx_boot_ms: F64, clock: _Clock) -> tuple[F64, list[str]]:
-    """UTC of time_usec values that are Unix-epoch, GPS-epoch or boot microseconds; 0 -> the
-    arrival time (boot clock of the last message before it)."""
+def _time_usec_to_utc(time_usec: F64, seg: F64, rx_boot_s: F64, clock: _Clock) -> tuple[F64, list[str]]:
+    """UTC of time_usec values that are Unix-epoch, GPS-epoch or boot microseconds
+    (:func:`acquisition.mavlink_messages.event_time_utc_s`); 0 -> the arrival time (boot clock
+    of the last message before it)."""
+    times = mm.event_time_utc_s(time_usec, clock.utc_s(seg, time_usec / 1e6), clock.utc_s(seg, rx_boot_s))
     notes: list[str] = []
-    out = np.full(time_usec.shape, np.nan)
-    rx_utc = clock.utc_s(seg, rx_boot_ms / 1e3)
-    zero = time_usec <= 0
-    boot = ~zero & (time_usec < BOOT_US_LIMIT)
-    epoch = ~zero & ~boot
-    out[boot] = clock.utc_s(seg[boot], time_usec[boot] / 1e6)
-    if epoch.any():
-        us = time_usec[epoch].astype(np.int64)
-        as_unix = (us // 1_000_000).astype(np.float64) + (us % 1_000_000) / 1e6
-        as_gps = gps_usec_to_utc_s(us)
-        ref = rx_utc[epoch]
-        use_gps = np.isfinite(ref) & (np.abs(as_gps - ref) < np.abs(as_unix - ref))
-        out[epoch] = np.where(use_gps, as_gps, as_unix)
-        if use_gps.any():
-            notes.append(f"{int(use_gps.sum())} time_usec values read as GPS-epoch microseconds")
-    if zero.any():
-        out[zero] = rx_utc[zero]
+    if times.gps_epoch.any():
+        notes.append(f"{int(times.gps_epoch.sum())} time_usec values read as GPS-epoch microseconds")
+    if times.no_time.any():
         notes.append(
-            f"{int(zero.sum())} events have no time of their own (time_usec 0, no GPS time); "
+            f"{int(times.no_time.sum())} events have no time of their own (time_usec 0, no GPS time); "
             f"their arrival time is used"
         )
-    return out, notes
+    return times.utc_s, notes
 
 
 def _arr(rows: list[tuple[float, ...]], width: int) -> F64:
     return np.array(rows, dtype=np.float64).reshape(-1, width)
+
+
+_EVENT_COLUMNS = ("lat_deg", "lon_deg", "alt_amsl_m", "alt_rel_home_m", "roll_deg", "pitch_deg", "yaw_deg")
 
 
 def _events(path: str, r: _Reading, clock: _Clock) -> tuple[CameraEvents | None, list[str]]:
@@ -401,47 +318,26 @@ def _events(path: str, r: _Reading, clock: _Clock) -> tuple[CameraEvents | None,
             f"{path}: camera events taken from {chosen} ({present[chosen]}); also present and "
             f"not used: {', '.join(others)}"
         )
-    if chosen == "CAMERA_FEEDBACK":
-        if len(r.cam_idx) > 1:
-            warnings.append(
-                f"{path}: CAMERA_FEEDBACK from several cameras (cam_idx {sorted(r.cam_idx)}); "
-                f"their image indices are mixed in one table"
-            )
-        a = _arr(r.rows[chosen], 12)
-        t, notes = _time_usec_to_utc(a[:, 3], a[:, 1], a[:, 2], clock)
-        order = time_order(t, a[:, 4])
-        cols = {
-            "lat_deg": a[:, 5],
-            "lon_deg": a[:, 6],
-            "alt_amsl_m": a[:, 7],
-            "alt_rel_home_m": a[:, 8],
-            "roll_deg": a[:, 9],
-            "pitch_deg": a[:, 10],
-            "yaw_deg": np.mod(a[:, 11], 360.0),
-        }
-        seq = a[:, 4]
-    elif chosen == "CAMERA_IMAGE_CAPTURED":
+    if chosen == "CAMERA_FEEDBACK" and len(r.cam_idx) > 1:
+        warnings.append(
+            f"{path}: CAMERA_FEEDBACK from several cameras (cam_idx {sorted(r.cam_idx)}); "
+            f"their image indices are mixed in one table"
+        )
+    # rows: receive time, boot segment, boot time, time, index, then for a positional event
+    # lat, lon, alt AMSL, alt above home and the attitude (Euler angles or a quaternion)
+    if chosen == "CAMERA_IMAGE_CAPTURED":
         a = _arr(r.rows[chosen], 13)
-        t = np.where(a[:, 3] > 0, a[:, 3] / 1e6, clock.utc_s(a[:, 1], a[:, 2] / 1e3))
-        notes = []
-        roll, pitch, yaw = euler_deg_from_quaternion(a[:, 9], a[:, 10], a[:, 11], a[:, 12])
-        order = time_order(t, a[:, 4])
-        cols = {
-            "lat_deg": a[:, 5],
-            "lon_deg": a[:, 6],
-            "alt_amsl_m": a[:, 7],
-            "alt_rel_home_m": a[:, 8],
-            "roll_deg": roll,
-            "pitch_deg": pitch,
-            "yaw_deg": yaw,
-        }
-        seq = a[:, 4]
+        t = np.where(a[:, 3] > 0, a[:, 3], clock.utc_s(a[:, 1], a[:, 2]))
+        notes: list[str] = []
+        angles: tuple[F64, ...] = roll_pitch_yaw_deg_from_quaternion(a[:, 9], a[:, 10], a[:, 11], a[:, 12])
     else:
-        a = _arr(r.rows[chosen], 5)
+        a = _arr(r.rows[chosen], 12 if chosen == "CAMERA_FEEDBACK" else 5)
         t, notes = _time_usec_to_utc(a[:, 3], a[:, 1], a[:, 2], clock)
-        order = time_order(t, a[:, 4])
-        cols = {}
-        seq = a[:, 4]
+        angles = (a[:, 9], a[:, 10], a[:, 11]) if chosen == "CAMERA_FEEDBACK" else ()
+    seq = a[:, 4]
+    order = time_order(t, seq)
+    values = (a[:, 5], a[:, 6], a[:, 7], a[:, 8], *angles) if angles else ()
+    cols = dict(zip(_EVENT_COLUMNS, values, strict=False))
     warnings += [f"{path}: {chosen}: {n}" for n in notes]
     untimed = int(np.count_nonzero(~np.isfinite(t)))
     if untimed:
@@ -468,27 +364,12 @@ def _positions(path: str, r: _Reading, clock: _Clock) -> PositionTrack | None:
             a = a[a[:, 0] >= first_fix_rx_s]
             if len(a) == 0:
                 return None
-        t = clock.utc_s(a[:, 1], a[:, 2] / 1e3)
-        o = time_order(t)
-        return PositionTrack(
-            time_utc_s=t[o],
-            lat_deg=a[o, 3],
-            lon_deg=a[o, 4],
-            alt_amsl_m=a[o, 5],
-            alt_rel_home_m=a[o, 6],
-            source="tlog:GLOBAL_POSITION_INT",
-        )
+        t = clock.utc_s(a[:, 1], a[:, 2])
+        return model.position_track(t, (a[:, 3], a[:, 4]), a[:, 5], a[:, 6], "tlog:GLOBAL_POSITION_INT")
     if r.rows["GPS_RAW_INT"]:
         a = _arr(r.rows["GPS_RAW_INT"], 7)
         t, _ = _time_usec_to_utc(a[:, 3], a[:, 1], a[:, 2], clock)
-        o = time_order(t)
-        return PositionTrack(
-            time_utc_s=t[o],
-            lat_deg=a[o, 4],
-            lon_deg=a[o, 5],
-            alt_amsl_m=a[o, 6],
-            source="tlog:GPS_RAW_INT",
-        )
+        return model.position_track(t, (a[:, 4], a[:, 5]), a[:, 6], None, "tlog:GPS_RAW_INT")
     return None
 
 
@@ -496,7 +377,7 @@ def _attitudes(r: _Reading, clock: _Clock) -> AttitudeTrack | None:
     if not r.rows["ATTITUDE"]:
         return None
     a = _arr(r.rows["ATTITUDE"], 6)
-    t = clock.utc_s(a[:, 1], a[:, 2] / 1e3)
+    t = clock.utc_s(a[:, 1], a[:, 2])
     o = time_order(t)
     return AttitudeTrack(
         time_utc_s=t[o],
@@ -512,41 +393,24 @@ def _gimbal(
 ) -> tuple[AttitudeTrack | None, list[str]]:
     if r.rows["GIMBAL_DEVICE_ATTITUDE_STATUS"]:
         a = _arr(r.rows["GIMBAL_DEVICE_ATTITUDE_STATUS"], 8)
-        t = clock.utc_s(a[:, 1], a[:, 2] / 1e3)
-        roll, pitch, yaw = euler_deg_from_quaternion(a[:, 4], a[:, 5], a[:, 6], a[:, 7])
-        flags = a[:, 3].astype(np.int64)
-        earth = ((flags & _GIMBAL_YAW_IN_EARTH_FRAME) != 0) | (
-            ((flags & _GIMBAL_YAW_LOCK) != 0) & ((flags & _GIMBAL_YAW_IN_VEHICLE_FRAME) == 0)
-        )
+        roll, pitch, yaw = roll_pitch_yaw_deg_from_quaternion(a[:, 4], a[:, 5], a[:, 6], a[:, 7])
+        earth = mm.gimbal_yaw_in_earth_frame(a[:, 3])
         source = "tlog:GIMBAL_DEVICE_ATTITUDE_STATUS"
     elif r.rows["MOUNT_STATUS"]:
         a = _arr(r.rows["MOUNT_STATUS"], 6)
-        t = clock.utc_s(a[:, 1], a[:, 2] / 1e3)
         roll, pitch, yaw = a[:, 3], a[:, 4], a[:, 5]
         earth = np.zeros(len(a), dtype=bool)
         source = "tlog:MOUNT_STATUS"
     else:
         return None, []
-    warnings: list[str] = []
-    if not earth.all():
-        yaw_e = yaw_to_earth_deg(yaw, t, vehicle)
-        if yaw_e is None:
-            return None, [
-                f"{path}: gimbal yaw is relative to the vehicle and there is no "
-                f"vehicle attitude to add; gimbal left out"
-            ]
-        yaw = np.where(earth, yaw, yaw_e)
-    o = time_order(t)
-    return (
-        AttitudeTrack(
-            time_utc_s=t[o],
-            roll_deg=roll[o],
-            pitch_deg=pitch[o],
-            yaw_deg=np.mod(yaw[o], 360.0),
-            source=source,
-        ),
-        warnings,
-    )
+    t = clock.utc_s(a[:, 1], a[:, 2])
+    track = model.gimbal_track(t, (roll, pitch, yaw), earth, vehicle, source)
+    if track is None:
+        return None, [
+            f"{path}: gimbal yaw is relative to the vehicle and there is no "
+            f"vehicle attitude to add; gimbal left out"
+        ]
+    return track, []
 
 
 def read_tlog(path: str | os.PathLike[str], progress: ReadProgress | None = None) -> FlightLog:
@@ -588,14 +452,6 @@ def read_tlog(path: str | os.PathLike[str], progress: ReadProgress | None = None
     gimbal, w = _gimbal(p, r, clock, attitudes)
     warnings += w
     positions = _positions(p, r, clock)
-    for w_ in warnings:
-        log.warning("%s", w_)
-    return FlightLog(
-        path=p,
-        format="tlog",
-        events=events,
-        positions=positions,
-        attitudes=attitudes,
-        gimbal=gimbal,
-        warnings=tuple(warnings),
+    return model.flight_log(
+        p, "tlog", warnings, events=events, positions=positions, attitudes=attitudes, gimbal=gimbal
     )

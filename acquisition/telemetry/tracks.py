@@ -1,4 +1,4 @@
-"""GPS tracks from text files -> :class:`~acquisition.telemetry.model.FlightLog` (positions, and
+"""GPS tracks in CSV files -> :class:`~acquisition.telemetry.model.FlightLog` (positions, and
 attitudes when the CSV has them). No camera events: frames are placed by time.
 
 ExifTool CSV track (the layout ``exiftool -geotag`` accepts; exiftool.org/geotag.html, "ExifTool
@@ -21,8 +21,7 @@ lat/lon in 1e-7 degrees and alt in mm, or latitude_deg, longitude_deg, altitude_
 plain UTC time with lat, lon, alt. A CSV in none of these is refused with the columns looked
 for and the ones found.
 
-GPX 1.1 (and 1.0): every ``trk/trkseg/trkpt`` with its ``lat``, ``lon`` attributes, ``ele``
-(metres, taken as AMSL) and ``time`` (ISO 8601, UTC when no offset is given).
+GPX tracks: :mod:`acquisition.telemetry.gpx`.
 
 Errors name the file and line, the bad value and what was expected.
 """
@@ -37,11 +36,11 @@ import os
 import re
 from collections.abc import Iterator
 from dataclasses import dataclass, field
-from xml.parsers import expat
 
 import numpy as np
 
 from ..errors import TelemetryError
+from ..mavlink_messages import DEG_PER_E7
 from .gpstime import gps_week_ms_to_utc_s, time_order
 from .model import AttitudeTrack, FlightLog, PositionTrack
 
@@ -280,7 +279,8 @@ def read_csv_track(path: str | os.PathLike[str]) -> FlightLog:
     return FlightLog(path=p, format="csv", positions=positions, attitudes=attitudes, warnings=tuple(warnings))
 
 
-def _parse_iso_time(text: str) -> float:
+def parse_iso_time_s(text: str) -> float:
+    """POSIX seconds of an ISO 8601 time (UTC when it gives no offset)."""
     t = text.strip()
     try:
         stamp = dt.datetime.fromisoformat(t.replace("z", "Z"))
@@ -289,104 +289,6 @@ def _parse_iso_time(text: str) -> float:
     if stamp.tzinfo is None:
         stamp = stamp.replace(tzinfo=dt.UTC)
     return stamp.timestamp()
-
-
-def read_gpx(path: str | os.PathLike[str]) -> FlightLog:
-    """Read the track points of a GPX 1.1 (or 1.0) file (see the module docstring)."""
-    p = os.fspath(path)
-    parser = expat.ParserCreate(namespace_separator=" ")
-    points: list[tuple[int, float, float, float | None, float | None]] = []
-    state: dict[str, object] = {"pt": None, "text": None}
-    errors: list[str] = []
-
-    def local(name: str) -> str:
-        return name.rsplit(" ", 1)[-1]
-
-    def start(name: str, attrs: dict[str, str]) -> None:
-        tag = local(name)
-        if tag == "trkpt":
-            line = parser.CurrentLineNumber
-            try:
-                lat = float(attrs["lat"])
-                lon = float(attrs["lon"])
-            except (KeyError, ValueError):
-                errors.append(
-                    f"{p}, line {line}: trkpt needs numeric lat and lon attributes, got "
-                    f"{attrs.get('lat')!r}, {attrs.get('lon')!r}"
-                )
-                lat = lon = float("nan")
-            if not (-90 <= lat <= 90 and -180 <= lon <= 180) and not errors:
-                errors.append(f"{p}, line {line}: trkpt lat {lat}, lon {lon} out of range")
-            state["pt"] = {"line": line, "lat": lat, "lon": lon, "ele": None, "time": None}
-        elif tag in ("ele", "time") and state["pt"] is not None:
-            state["text"] = []
-            state["tag_line"] = parser.CurrentLineNumber
-
-    def chars(data: str) -> None:
-        buf = state["text"]
-        if isinstance(buf, list):
-            buf.append(data)
-
-    def end(name: str) -> None:
-        tag = local(name)
-        pt = state["pt"]
-        if not isinstance(pt, dict):
-            return
-        if tag in ("ele", "time") and isinstance(state["text"], list):
-            value = "".join(state["text"]).strip()
-            state["text"] = None
-            try:
-                pt[tag] = float(value) if tag == "ele" else _parse_iso_time(value)
-            except ValueError as exc:
-                errors.append(f"{p}, line {state['tag_line']}: <{tag}> {value!r}: {exc}")
-        elif tag == "trkpt":
-            if pt["time"] is None and not errors:
-                errors.append(f"{p}, line {pt['line']}: trkpt without <time>; cannot place it")
-            points.append((pt["line"], pt["lat"], pt["lon"], pt["ele"], pt["time"]))
-            state["pt"] = None
-
-    parser.StartElementHandler = start
-    parser.EndElementHandler = end
-    parser.CharacterDataHandler = chars
-    try:
-        with open(p, "rb") as f:
-            parser.ParseFile(f)
-    except OSError as exc:
-        raise TelemetryError(f"cannot read {p}: {exc}") from exc
-    except expat.ExpatError as exc:
-        raise TelemetryError(
-            f"{p}, line {exc.lineno}: not well-formed XML ({expat.ErrorString(exc.code)})"
-        ) from None
-    if errors:
-        raise TelemetryError(errors[0] + (f" (and {len(errors) - 1} more)" if len(errors) > 1 else ""))
-    if not points:
-        raise TelemetryError(f"{p}: no <trkpt> in the file; a GPX track is needed")
-    t = np.array([pt[4] for pt in points], dtype=np.float64)
-    warnings: list[str] = []
-    eles = [pt[3] for pt in points]
-    alt = None
-    if all(e is not None for e in eles):
-        alt = np.array(eles, dtype=np.float64)
-    elif any(e is not None for e in eles):
-        first = next(pt[0] for pt in points if pt[3] is None)
-        warnings.append(f"{p}: trkpt without <ele> at line {first}; elevations not used")
-    o = time_order(t)
-    if len(o) < len(t):
-        warnings.append(f"{p}: {len(t) - len(o)} track points with a repeated time dropped")
-    for w in warnings:
-        log.warning("%s", w)
-    return FlightLog(
-        path=p,
-        format="gpx",
-        positions=PositionTrack(
-            time_utc_s=t[o],
-            lat_deg=np.array([pt[1] for pt in points])[o],
-            lon_deg=np.array([pt[2] for pt in points])[o],
-            alt_amsl_m=alt[o] if alt is not None else None,
-            source="gpx",
-        ),
-        warnings=tuple(warnings),
-    )
 
 
 # ------------------------------------------------------------- autopilot GPS exports as CSV
@@ -513,7 +415,7 @@ def _utc_cell(text: str) -> float:
     try:
         return parse_exif_datetime(value)
     except ValueError:
-        return _parse_iso_time(value)
+        return parse_iso_time_s(value)
 
 
 def read_autopilot_csv(path: str, text: str, header: list[str]) -> FlightLog:
@@ -562,7 +464,7 @@ def read_autopilot_csv(path: str, text: str, header: list[str]) -> FlightLog:
                 column = layout.lat
                 lat, lon = float(cell(layout.lat)), float(cell(layout.lon))
                 if layout.name == "px4_vehicle_gps_position":
-                    lat, lon = lat * 1e-7, lon * 1e-7
+                    lat, lon = lat * DEG_PER_E7, lon * DEG_PER_E7
                 if lat == 0.0 and lon == 0.0:
                     skipped += 1
                     continue

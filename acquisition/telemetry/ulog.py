@@ -33,10 +33,19 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ..attitude import roll_pitch_yaw_deg_from_quaternion
 from ..errors import TelemetryError
+from ..mavlink_messages import deg_from_e7, gimbal_yaw_in_earth_frame
 from .gpstime import BootClock, fit_boot_clock, time_order
-from .model import AttitudeTrack, CameraEvents, FlightLog, PositionTrack
-from .tlog import euler_deg_from_quaternion, yaw_to_earth_deg
+from .model import (
+    AttitudeTrack,
+    CameraEvents,
+    FlightLog,
+    PositionTrack,
+    assemble_log,
+    gimbal_track,
+    position_track,
+)
 
 log = logging.getLogger(__name__)
 
@@ -53,9 +62,6 @@ _TOPICS = [
     "gimbal_device_attitude_status",
     *_GPS_TOPICS,
 ]
-_GIMBAL_YAW_LOCK = 16
-_GIMBAL_YAW_IN_VEHICLE_FRAME = 32
-_GIMBAL_YAW_IN_EARTH_FRAME = 64
 
 
 def ulog_framing_end(path: str) -> tuple[int, int, int]:
@@ -91,7 +97,7 @@ def _topic(ulog: Any, name: str) -> dict[str, NDArray[Any]] | None:
 
 
 def _q(d: dict[str, NDArray[Any]]) -> tuple[F64, F64, F64]:
-    return euler_deg_from_quaternion(d["q[0]"], d["q[1]"], d["q[2]"], d["q[3]"])
+    return roll_pitch_yaw_deg_from_quaternion(d["q[0]"], d["q[1]"], d["q[2]"], d["q[3]"])
 
 
 def _clock(path: str, ulog: Any) -> tuple[BootClock | None, list[str]]:
@@ -174,14 +180,7 @@ def _positions(ulog: Any, clock: BootClock | None) -> PositionTrack | None:
     d = _topic(ulog, "vehicle_global_position")
     if d is not None:
         t = clock.utc_s(d["timestamp"] / 1e6)
-        o = time_order(t)
-        return PositionTrack(
-            time_utc_s=t[o],
-            lat_deg=d["lat"][o].astype(np.float64),
-            lon_deg=d["lon"][o].astype(np.float64),
-            alt_amsl_m=d["alt"][o].astype(np.float64),
-            source="ulog:vehicle_global_position",
-        )
+        return position_track(t, (d["lat"], d["lon"]), d["alt"], None, "ulog:vehicle_global_position")
     for name in _GPS_TOPICS:
         d = _topic(ulog, name)
         if d is None:
@@ -190,17 +189,10 @@ def _positions(ulog: Any, clock: BootClock | None) -> PositionTrack | None:
             lat, lon = d["latitude_deg"], d["longitude_deg"]
             alt = d["altitude_msl_m"]
         else:
-            lat, lon, alt = d["lat"] * 1e-7, d["lon"] * 1e-7, d["alt"] * 1e-3
+            lat, lon, alt = deg_from_e7(d["lat"]), deg_from_e7(d["lon"]), d["alt"] * 1e-3
         ok = d["fix_type"] >= 3 if "fix_type" in d else np.ones(len(lat), dtype=bool)
         t = clock.utc_s(d["timestamp"] / 1e6)
-        o = time_order(np.where(ok, t, np.nan))
-        return PositionTrack(
-            time_utc_s=t[o],
-            lat_deg=np.asarray(lat, dtype=np.float64)[o],
-            lon_deg=np.asarray(lon, dtype=np.float64)[o],
-            alt_amsl_m=np.asarray(alt, dtype=np.float64)[o],
-            source=f"ulog:{name}",
-        )
+        return position_track(t, (lat, lon), alt, None, f"ulog:{name}", keep=ok)
     return None
 
 
@@ -228,26 +220,11 @@ def _gimbal(
         return None, []
     t = clock.utc_s(d["timestamp"] / 1e6)
     roll, pitch, yaw = _q(d)
-    flags = d.get("device_flags", np.zeros(len(t))).astype(np.int64)
-    earth = ((flags & _GIMBAL_YAW_IN_EARTH_FRAME) != 0) | (
-        ((flags & _GIMBAL_YAW_LOCK) != 0) & ((flags & _GIMBAL_YAW_IN_VEHICLE_FRAME) == 0)
-    )
-    if not earth.all():
-        yaw_e = yaw_to_earth_deg(yaw, t, vehicle)
-        if yaw_e is None:
-            return None, [f"{path}: gimbal yaw relative to the vehicle and no vehicle attitude"]
-        yaw = np.where(earth, yaw, yaw_e)
-    o = time_order(t)
-    return (
-        AttitudeTrack(
-            time_utc_s=t[o],
-            roll_deg=roll[o],
-            pitch_deg=pitch[o],
-            yaw_deg=np.mod(yaw[o], 360.0),
-            source="ulog:gimbal_device_attitude_status",
-        ),
-        [],
-    )
+    earth = gimbal_yaw_in_earth_frame(d.get("device_flags", np.zeros(len(t))))
+    track = gimbal_track(t, (roll, pitch, yaw), earth, vehicle, "ulog:gimbal_device_attitude_status")
+    if track is None:
+        return None, [f"{path}: gimbal yaw relative to the vehicle and no vehicle attitude"]
+    return track, []
 
 
 def read_ulog(path: str | os.PathLike[str]) -> FlightLog:
@@ -273,21 +250,4 @@ def read_ulog(path: str | os.PathLike[str]) -> FlightLog:
         )
     if ulog.file_corruption:
         warnings.append(f"{p}: pyulog found corrupt data and skipped it")
-    clock, w = _clock(p, ulog)
-    warnings += w
-    events, w = _events(p, ulog, clock)
-    warnings += w
-    attitudes = _attitudes(ulog, clock)
-    gimbal, w = _gimbal(p, ulog, clock, attitudes)
-    warnings += w
-    for w_ in warnings:
-        log.warning("%s", w_)
-    return FlightLog(
-        path=p,
-        format="ulog",
-        events=events,
-        positions=_positions(ulog, clock),
-        attitudes=attitudes,
-        gimbal=gimbal,
-        warnings=tuple(warnings),
-    )
+    return assemble_log(p, "ulog", warnings, ulog, _clock, _events, _attitudes, _gimbal, _positions)

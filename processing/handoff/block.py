@@ -2,12 +2,12 @@
 
 Images are read with :func:`acquisition.exif.read_tags`; images from different cameras (make,
 model, focal length, image size) get one camera each. Positioned images become
-:class:`~processing.frames.Frames` through :func:`processing.inputs.frames_from_tags` (one call
+:class:`~processing.frames.Frames` through :func:`processing.image_frames.frames_from_tags` (one call
 per camera, so each has its camera) and are projected onto the ground with
 :func:`processing.footprints.project_footprints` for the image pairs. Images without a position
 stay in the block, with no prior, and the block says so.
 
-The local frame is :func:`processing.inputs.local_frame_at` the median camera position (a
+The local frame is :func:`processing.frames.local_frame_at` the median camera position (a
 transverse Mercator, metres east and north, scale 1 at its origin); z is the camera altitude
 in the frames' own reference (EXIF: above mean sea level). The project files name it.
 
@@ -32,8 +32,8 @@ from planner.camera import Camera
 from planner.errors import CameraError
 from planner.geo import LocalFrame
 
-from ..frames import AltitudeReference, Frames
-from ..inputs import frames_from_tags, image_paths, local_frame_at
+from ..frames import AltitudeReference, Frames, local_frame_at
+from ..image_frames import frames_from_tags, image_paths
 from .errors import HandoffInputError
 from .intrinsics import Intrinsics, given_intrinsics, intrinsics_for
 

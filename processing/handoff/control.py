@@ -4,7 +4,7 @@
 of the block and lie inside it, and at least three control points must be seen in two frames
 or more. :func:`control_accuracy` places a model by the control points and measures control and
 check residuals (:func:`processing.accuracy.assess_accuracy`) in a local metric frame around the
-points (:func:`processing.inputs.local_frame_at`: metres east and north, z the surveyed elevation).
+points (:func:`processing.frames.local_frame_at`: metres east and north, z the surveyed elevation).
 """
 
 from __future__ import annotations
@@ -17,9 +17,9 @@ from numpy.typing import NDArray
 
 from planner.geo import LocalFrame
 
-from ..accuracy import MIN_CONTROL_POINTS, AccuracyResult, View, assess_accuracy
+from ..accuracy import MIN_CONTROL_POINTS, AccuracyResult, View, assess_accuracy, heights_unknown
+from ..frames import local_frame_at
 from ..gcp import GcpSet, choose_check_points
-from ..inputs import local_frame_at
 from .block import Block
 from .errors import HandoffInputError
 
@@ -79,11 +79,11 @@ def validate_control(gcps: GcpSet, block: Block, check_points: str | None) -> Co
             f"{len(check)} check point(s); {MIN_CONTROL_POINTS} are needed, each marked in two images or "
             "more: mark more points or choose fewer check points"
         )
-    if all(gcps.point(n).elevation_m == 0.0 for n in gcps.names):
+    if heights_unknown(ground):
         notes.append(
-            "every elevation in the GCP file is 0.0: the surveyed heights are unknown, so Z "
-            "residuals measure the "
-            "terrain's height above the 0.0 datum, not the model's error; trust X and Y only"
+            "every elevation in the GCP file is 0.0: the surveyed heights are unknown, so the model is "
+            "placed by the horizontal positions alone (scale, rotation, east, north) and Z is not measured "
+            "(a fit to the 0.0 heights would flatten the real relief: wrong scale and tilt)"
         )
     return ControlPlan(
         gcps=gcps,
@@ -103,6 +103,7 @@ def control_accuracy(plan: ControlPlan, views: Mapping[str, View]) -> AccuracyRe
         views=views,
         control=plan.control,
         check=plan.check,
+        heights_known=not heights_unknown(plan.ground_xyz_m),
     )
 
 

@@ -19,9 +19,10 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from ..flight_lines import capture_order, flight_lines
 from ..footprints import Footprints, project_footprints
 from ..ground import Ground
-from ..stereo import capture_order, flight_lines, overlapping_pairs
+from ..stereo import overlapping_pairs
 from .block import Block
 
 #: Default smallest footprint overlap of a pair, percent of the smaller footprint.
@@ -80,7 +81,7 @@ def footprint_pairs(
     line_neighbours: int = DEFAULT_LINE_NEIGHBOURS,
 ) -> ImagePairs:
     """The pairs of ``block`` to match (module docstring). ``ground`` in the frames' altitude
-    reference (:func:`processing.inputs.ground_from_options`); None only when no image has a
+    reference (:func:`processing.ground_choice.ground_from_options`); None only when no image has a
     position."""
     n = len(block)
     found: dict[tuple[int, int], tuple[str, float]] = {}

@@ -28,6 +28,9 @@ from .quicklook import DEFAULT_MAX_FEATURES, DEFAULT_MAX_IMAGE_SIZE_PX, QuickLoo
 
 log = logging.getLogger(__name__)
 
+#: Where the largest model goes when the ground control (not GPS) places it.
+PLACED_BY_CONTROL = "sparse/placed_by_control"
+
 
 class Engine(StrEnum):
     COLMAP = "colmap"
@@ -82,7 +85,7 @@ def handoff(
 ) -> HandoffResult:
     """Write the ``options.engine`` project for ``images`` into ``work`` (and run it for COLMAP
     with ``options.run``)."""
-    from .report import accuracy_dict, quicklook_dict, report_html, write_json
+    from .report import accuracy_dict, distances_text, quicklook_dict, report_html, write_json
 
     if options.run and options.engine is not Engine.COLMAP:
         raise HandoffInputError(f"--run runs COLMAP only; drop --run for --to {options.engine.value}")
@@ -132,8 +135,29 @@ def handoff(
                 if plan is not None and quick.largest is not None:
                     say("accuracy: control and check points")
                     acc = control_accuracy(plan, quick.largest.views)
-                    report["accuracy"] = accuracy_dict(acc, check_distances(plan, acc), plan.notes)
-                    report["accuracy"]["table_3_2"] = table_3_2(acc)
+                    distances = check_distances(plan, acc)
+                    report["accuracy"] = accuracy_dict(acc, distances, plan.notes)
+                    if quick.georegistration is None:
+                        # No GPS placed the model: the control does, in the frame of the points.
+                        from . import colmap_adapter as colmap
+                        from .block import proj_string
+
+                        s = acc.similarity
+                        placed = colmap.transform_model(quick.largest, s.scale, s.rotation, s.translation_m)
+                        colmap.write_model(placed, stage / PLACED_BY_CONTROL)
+                        report["accuracy"]["model"] = {
+                            "folder": PLACED_BY_CONTROL,
+                            "frame_proj": proj_string(plan.frame),
+                            "z": "surveyed elevation"
+                            if acc.heights_known
+                            else "height above the control points' mean (their elevations are unknown)",
+                        }
+                        report["quicklook"]["messages"] = [
+                            m for m in report["quicklook"]["messages"] if "not georegistered" not in m
+                        ] + [f"the model is placed by the ground control: {PLACED_BY_CONTROL}"]
+                    report["accuracy"]["table_3_2"] = "\n".join(
+                        t for t in (table_3_2(acc), distances_text(distances)) if t
+                    )
         elif options.engine is Engine.NODEODM:
             from .nodeodm import parse_node_url, run_on_node
             from .odm import GCP_TXT, GEO_TXT, write_odm_project

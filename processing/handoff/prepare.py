@@ -10,7 +10,7 @@ from pathlib import Path
 from planner.camera import Camera
 
 from ..ground import Ground
-from ..inputs import ground_from_options
+from ..ground_choice import ground_from_options
 from .block import Block, read_block
 from .pairs import DEFAULT_LINE_NEIGHBOURS, DEFAULT_MIN_OVERLAP_PCT, ImagePairs, footprint_pairs
 
@@ -41,7 +41,7 @@ def prepare(
     camera: Camera | None = None,
     progress: Callable[[int], None] | None = None,
 ) -> Prepared:
-    """Read the block, choose the ground (:func:`processing.inputs.ground_from_options`: the
+    """Read the block, choose the ground (:func:`processing.ground_choice.ground_from_options`: the
     same rules and messages as ``sfap check``) and the pairs."""
     ground = ground or GroundOptions()
     block = read_block(images, camera=camera, progress=progress)

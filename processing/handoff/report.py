@@ -9,28 +9,14 @@ import base64
 import html
 import io
 import json
-import math
 from typing import Any
 
 import numpy as np
 
+from planner.outputs import json_safe
+
 from ..accuracy import SMITH_VERICAT_RATIO, TEXTBOOK_RATIO_RANGE, AccuracyResult
 from .quicklook import QuickLook
-
-
-def _clean(value: Any) -> Any:
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    if isinstance(value, dict):
-        return {str(k): _clean(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_clean(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return _clean(value.tolist())
-    item = getattr(value, "item", None)
-    if callable(item):
-        return _clean(item())
-    return value
 
 
 def quicklook_dict(q: QuickLook) -> dict[str, Any]:
@@ -60,11 +46,27 @@ def quicklook_dict(q: QuickLook) -> dict[str, Any]:
 def accuracy_dict(
     result: AccuracyResult, distances: list[dict[str, Any]], notes: tuple[str, ...]
 ) -> dict[str, Any]:
-    return result.as_dict() | {"check_distances": distances, "notes": list(notes)}
+    return result.as_dict() | {"check_distances": distances, "notes": [*notes, *result.warnings]}
+
+
+def distances_text(distances: list[dict[str, Any]]) -> str:
+    """The distances between check points beside the surveyed ones, as plain text."""
+    if not distances:
+        return ""
+    lines = ["distances between check points (horizontal): surveyed m, model m, model - surveyed m"]
+    for d in distances:
+        lines.append(
+            f"  {d['a']}-{d['b']:<8} {d['surveyed_m']:9.3f} {d['model_m']:9.3f} {d['difference_m']:+9.3f}"
+        )
+    return "\n".join(lines)
+
+
+def _f(value: float | None, digits: int = 3) -> str:
+    return "n/a" if value is None else f"{value:.{digits}f}"
 
 
 def write_json(data: dict[str, Any]) -> str:
-    return json.dumps(_clean(data), indent=2, allow_nan=False)
+    return json.dumps(json_safe(data), indent=2, allow_nan=False)
 
 
 def _png(fig: Any) -> str:
@@ -118,9 +120,9 @@ def accuracy_html(acc: dict[str, Any]) -> str:
                     r["n_points"],
                     f"{r['rmse_x_m']:.3f}",
                     f"{r['rmse_y_m']:.3f}",
-                    f"{r['rmse_z_m']:.3f}",
+                    _f(r["rmse_z_m"]),
                     f"{r['rmse_horizontal_m']:.3f}",
-                    f"{r['rmse_total_m']:.3f}",
+                    _f(r["rmse_total_m"]),
                     f"{r['rmse_image_px']:.2f}",
                     f"{r['rmse_marks_px']:.2f}",
                     f"{r['range_m']:.1f}",
@@ -143,7 +145,14 @@ def accuracy_html(acc: dict[str, Any]) -> str:
             f"1:{SMITH_VERICAT_RATIO:.0f}",
         ]
     )
-    out = "<h2>Accuracy at ground control and check points</h2>" + _table(
+    out = "<h2>Accuracy at ground control and check points</h2>"
+    out += f"<p>Fit: {html.escape(str(acc.get('fit', '')))}.</p>"
+    if not acc.get("heights_known", True):
+        out += (
+            "<p class='note'>Z is not measurable: the surveyed heights are unknown (all 0.0); "
+            "RMSE:range is on the horizontal RMSE.</p>"
+        )
+    out += _table(
         [
             "points",
             "n",
@@ -160,16 +169,30 @@ def accuracy_html(acc: dict[str, Any]) -> str:
         rows,
     )
     out += _table(
-        ["point", "role", "dX m", "dY m", "dZ m", "image px", "images"],
+        [
+            "point",
+            "role",
+            "dX m",
+            "dY m",
+            "dZ m",
+            "left out of the fit, horizontal m",
+            "image px",
+            "marks px",
+            "images",
+            "widest ray angle deg",
+        ],
         [
             [
                 p["name"],
                 p["role"],
                 f"{p['dx_m']:.3f}",
                 f"{p['dy_m']:.3f}",
-                f"{p['dz_m']:.3f}",
+                _f(p["dz_m"]),
+                _f(p.get("left_out_horizontal_m")),
                 f"{p['image_rmse_px']:.2f}",
+                f"{p['marks_rmse_px']:.2f}",
                 p["n_images"],
+                f"{p['widest_angle_deg']:.1f}",
             ]
             for p in acc["points"]
         ],

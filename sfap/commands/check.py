@@ -3,26 +3,20 @@
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from pathlib import Path
 
 import click
 
 from planner.area import build_area, load_polygons
 from planner.outputs import check_output_dir
-from processing.check import CheckResult, Thresholds, run_check
+from planner.plan_folder import is_plan_folder
+from processing.check import run_check
+from processing.check_inputs import gather_inputs
+from processing.check_result import CheckResult
 from processing.errors import ProcessingError
 from processing.image_tags import camera_option
-from processing.inputs import (
-    GroundChoice,
-    PlanInfo,
-    frames_from_plan,
-    ground_for_plan,
-    image_paths,
-    images_ground,
-    is_plan_folder,
-    read_image_frames,
-    read_plan_info,
-)
+from processing.verdict import Thresholds
 
 from ..common import dumps_json, echo_table, json_option, overwrite_option, progress
 
@@ -143,7 +137,7 @@ def command(
     overwrite: bool,
     as_json: bool,
     no_progress: bool,
-) -> None:
+) -> CheckResult:
     """Check the frames in IMAGES_OR_PLAN (a folder of geotagged images, or a plan folder
     written by `sfap plan` to check the plan itself) before leaving the field: views per
     ground cell, gaps, forward and side overlap, base-height ratios, GSD, motion blur.
@@ -168,72 +162,36 @@ def command(
         check_output_dir(out_dir, overwrite=overwrite)  # refuse before minutes of work
     camera = camera_option(camera_id) if camera_id else None
     show_progress = not no_progress and not as_json
-    notes: tuple[str, ...] = ()
-    warnings: tuple[str, ...] = ()
-    left_out: tuple[tuple[str, str], ...] = ()
-    plan: PlanInfo | None
-    unpositioned: tuple[str, ...] = ()
-    choice: GroundChoice
-    camera_source = ""
-    if is_plan_folder(source):
-        if plan_dir is not None:
-            raise click.UsageError(f"{source} is a plan folder already; drop --plan")
-        frames, plan = frames_from_plan(source, camera=camera)
-        notes = ("frames are the plan's stations (attitude as planned)",)
-        choice = ground_for_plan(
-            frames=frames,
-            info=plan,
+    if plan_dir is not None and is_plan_folder(source):
+        raise click.UsageError(f"{source} is a plan folder already; drop --plan")
+    with progress("reading images", 0 if is_plan_folder(source) else 100, enabled=show_progress) as advance:
+        inputs = gather_inputs(
+            source,
+            plan_dir=plan_dir,
+            camera=camera,
             dem=dem,
             ground_elevation_m=ground_elevation_m,
             takeoff_elevation_m=takeoff_elevation_m,
+            progress=_in_percent(advance),
         )
-    else:
-        plan = read_plan_info(plan_dir) if plan_dir is not None else None
-        with progress("reading images", len(image_paths(source)), enabled=show_progress) as advance:
-            images = read_image_frames(
-                source, camera=camera, fallback_camera=plan.camera if plan else None, progress=advance
-            )
-        frames, notes, unpositioned = (
-            images.frames,
-            (f"camera: {images.camera_source}", *images.notes),
-            images.unpositioned,
-        )
-        warnings, left_out = images.warnings, images.left_out
-        camera_source = images.camera_source
-        choice = images_ground(
-            frames=frames,
-            plan=plan,
-            dem=dem,
-            ground_elevation_m=ground_elevation_m,
-            takeoff_elevation_m=takeoff_elevation_m,
-        )
-    left_out = (*left_out, *choice.left_out)
     area = None
     if area_file is not None:
         area, _ = build_area(load_polygons(area_file), [])
     with progress("counting views", 100, enabled=show_progress) as advance:
-        done = [0]
-
-        def on_progress(k: int, total: int) -> None:
-            step = int(100 * k / max(total, 1)) - done[0]
-            if step > 0:
-                done[0] += step
-                advance(step)
-
         result = run_check(
-            choice.frames,
-            ground=choice.ground,
+            inputs.frames,
+            ground=inputs.ground,
             area=area,
-            plan=plan,
+            plan=inputs.plan,
             cell_m=cell_m,
             thresholds=thresholds,
-            progress=on_progress,
-            ground_description=choice.description,
-            notes=notes,
-            unpositioned=unpositioned,
-            left_out=left_out,
-            warnings=warnings,
-            camera_source=camera_source,
+            progress=_in_percent(advance),
+            ground_description=inputs.ground_description,
+            notes=inputs.notes,
+            unpositioned=inputs.unpositioned,
+            left_out=inputs.left_out,
+            warnings=inputs.warnings,
+            camera_source=inputs.camera_source,
         )
     refly_plan = None
     if refly and result.gaps:
@@ -245,8 +203,20 @@ def command(
 
         write_report(result, out_dir, overwrite=overwrite, refly=refly_plan)
     _present(result, out_dir, refly, refly_plan is not None, as_json)
-    if not result.passed:
-        click.get_current_context().exit(result.exit_code)
+    return result  # sfap.cli exits 1 when it did not pass
+
+
+def _in_percent(advance: Callable[[int], None]) -> Callable[[int, int], None]:
+    """A library's ``progress(done, total)`` as steps of a bar of 100."""
+    shown = [0]
+
+    def on_progress(done: int, total: int) -> None:
+        step = int(100 * done / max(total, 1)) - shown[0]
+        if step > 0:
+            shown[0] += step
+            advance(step)
+
+    return on_progress
 
 
 def _present(

@@ -8,10 +8,11 @@ from pathlib import Path
 
 import click
 
-from acquisition.monitor import MonitorResult, MonitorState, StopReason, monitor
-from acquisition.signing import SIGNING_KEY_ENV, load_signing_key
+from acquisition.monitor import MonitorResult, StopReason, monitor
+from acquisition.monitor_state import MonitorState
+from acquisition.signing import load_signing_key
 
-from ..common import dumps_json, json_option, overwrite_option
+from ..common import connect_options, dumps_json, json_option, overwrite_option
 
 
 def status_line(state: MonitorState) -> str:
@@ -86,16 +87,7 @@ class _StatusPrinter:
 
 
 @click.command(name="monitor")
-@click.option(
-    "--connect",
-    "url",
-    required=True,
-    metavar="URL",
-    help=(
-        "How to reach the vehicle: serial:///dev/ttyUSB0:57600, udpin://0.0.0.0:14550, "
-        "udpout://HOST:PORT, tcp://HOST:PORT or tcpin://HOST:PORT."
-    ),
-)
+@connect_options
 @click.option(
     "--plan",
     "plan_dir",
@@ -120,28 +112,10 @@ class _StatusPrinter:
     help="After a link drop, keep trying to reconnect for this many seconds.",
 )
 @click.option(
-    "--heartbeat-timeout-s",
-    type=click.FloatRange(min=0.1),
-    default=10.0,
-    show_default=True,
-    help="Seconds to wait for the vehicle's heartbeat at the start.",
-)
-@click.option(
     "--keep-after-landing",
     is_flag=True,
     help="Keep recording after the vehicle lands and disarms (default: stop then).",
 )
-@click.option(
-    "--signing-key",
-    "signing_key_file",
-    type=click.Path(dir_okay=False, path_type=Path),
-    default=None,
-    help=(
-        "MAVLink 2 signing key file: 32 raw bytes, 64 hex digits, or a passphrase. "
-        f"Default: ${SIGNING_KEY_ENV} if set, else no signing."
-    ),
-)
-@click.option("--require-signing", is_flag=True, help="Refuse unsigned messages from the vehicle.")
 @json_option
 def command(
     url: str,

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from planner.export import OUTPUT_FILES, write_outputs
+from planner.plan_folder import OUTPUT_FILES, write_outputs
 from planner.spec import load_spec
 from planner.survey import plan_survey
 

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any, TypeVar
 
 import click
 
@@ -17,7 +19,13 @@ from acquisition.simulator.server import (
 from planner.errors import InputError
 from planner.mission import Autopilot, HomePosition, Mission, VehicleType
 
-_PERCENT = click.FloatRange(0.0, 100.0)
+F = TypeVar("F", bound=Callable[..., Any])
+
+
+def _percent_option(name: str, help_text: str) -> Callable[[F], F]:
+    """A fault rate option: 0-100 %, default 0."""
+    percent = click.FloatRange(0.0, 100.0)
+    return click.option(name, type=percent, default=0.0, show_default=True, help=help_text)
 
 
 @click.command(name="sim")
@@ -50,27 +58,9 @@ _PERCENT = click.FloatRange(0.0, 100.0)
     show_default=True,
     help="Simulated seconds per wall-clock second.",
 )
-@click.option(
-    "--loss-pct",
-    type=_PERCENT,
-    default=0.0,
-    show_default=True,
-    help="Messages lost, percent (each way).",
-)
-@click.option(
-    "--duplicate-pct",
-    type=_PERCENT,
-    default=0.0,
-    show_default=True,
-    help="Messages delivered twice, percent (each way).",
-)
-@click.option(
-    "--reorder-pct",
-    type=_PERCENT,
-    default=0.0,
-    show_default=True,
-    help="Messages swapped with the next one, percent (each way).",
-)
+@_percent_option("--loss-pct", "Messages lost, percent (each way).")
+@_percent_option("--duplicate-pct", "Messages delivered twice, percent (each way).")
+@_percent_option("--reorder-pct", "Messages swapped with the next one, percent (each way).")
 @click.option(
     "--latency-s",
     type=click.FloatRange(0.0, 60.0),
@@ -110,7 +100,7 @@ _PERCENT = click.FloatRange(0.0, 100.0)
     "--home",
     "home_text",
     default=None,
-    metavar="LAT,LON,ALT",
+    metavar="LAT_DEG,LON_DEG,ALT_AMSL_M",
     help="Where the vehicle stands: latitude and longitude (degrees, WGS84) and the ground's "
     "elevation (m above mean sea level). Default: the home of --plan or --mission, else the home "
     "of the first mission uploaded (the vehicle moves there before its first flight).",

@@ -15,13 +15,13 @@ import click
 from acquisition.errors import LinkError
 from acquisition.link import Link
 from acquisition.mission_protocol import DEFAULT_RETRIES, DEFAULT_TIMEOUT_S, TransferPhase
-from acquisition.signing import SIGNING_KEY_ENV, load_signing_key
+from acquisition.signing import load_signing_key
 from acquisition.transfer import upload_mission
 from acquisition.transfer_outcome import MissionInputError, MissionVerificationError
 from planner.errors import MissionFileError, MissionValidationError
 from planner.mission import validate_mission
 
-from ..common import echo_json, echo_table, json_option, progress
+from ..common import connect_options, echo_json, echo_table, json_option, progress
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -34,33 +34,9 @@ _PHASE_LABELS = {
 
 
 def link_options(function: F) -> F:
-    """--connect, signing, and the protocol's timeouts: the options of every vehicle command."""
+    """The connection options (:func:`sfap.common.connect_options`) and the mission protocol's
+    timeouts: the options of upload, download and clear."""
     options = [
-        click.option(
-            "--connect",
-            "url",
-            required=True,
-            metavar="URL",
-            help=(
-                "How to reach the vehicle: serial:///dev/ttyUSB0:57600, udpin://0.0.0.0:14550, "
-                "udpout://HOST:PORT, tcp://HOST:PORT or tcpin://HOST:PORT."
-            ),
-        ),
-        click.option(
-            "--signing-key",
-            "signing_key_file",
-            type=click.Path(dir_okay=False, path_type=Path),
-            default=None,
-            help=(
-                "MAVLink 2 signing key file: 32 raw bytes, 64 hex digits, or a passphrase "
-                f"(SHA-256, as MAVProxy). Default: ${SIGNING_KEY_ENV} if set, else no signing."
-            ),
-        ),
-        click.option(
-            "--require-signing",
-            is_flag=True,
-            help="Refuse unsigned messages from the vehicle (needs a key).",
-        ),
         click.option(
             "--timeout-s",
             type=click.FloatRange(min=0.01),
@@ -75,17 +51,10 @@ def link_options(function: F) -> F:
             show_default=True,
             help="How many times a mission message is repeated before giving up.",
         ),
-        click.option(
-            "--heartbeat-timeout-s",
-            type=click.FloatRange(min=0.1),
-            default=10.0,
-            show_default=True,
-            help="Seconds to wait for the vehicle's heartbeat when connecting.",
-        ),
     ]
     for option in reversed(options):
         function = option(function)
-    return function
+    return connect_options(function)
 
 
 def open_link(

@@ -289,11 +289,11 @@ def test_sitl_written_attitude_agrees_with_the_autopilot(name: str) -> None:
 
 def test_quaternion_and_angles_from_the_tlog_reader_agree_at_nadir() -> None:
     """The reader's own quaternion-to-angles conversion is the locked one of attitude."""
-    from acquisition.telemetry.tlog import euler_deg_from_quaternion
+    from acquisition.attitude import roll_pitch_yaw_deg_from_quaternion
 
     for heading in (0.0, 20.0, 96.0, 185.0, 359.0):
         q = _mavlink_quaternion(rz(heading) @ ry(-90.0))
-        roll, pitch, yaw = euler_deg_from_quaternion(*q)
+        roll, pitch, yaw = roll_pitch_yaw_deg_from_quaternion(*q)
         assert float(pitch) == pytest.approx(-90.0, abs=1e-6)
         assert float(roll) == 0.0
         assert (float(yaw) - heading + 180.0) % 360.0 - 180.0 == pytest.approx(0.0, abs=1e-6)

@@ -8,7 +8,6 @@ import contextlib
 import csv
 import json
 import math
-import select
 import socket
 import struct
 import threading
@@ -23,26 +22,22 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 from pyproj import Geod
+from tcp_relay import Relay
 
+from acquisition.flight_recorder import FlightRecorder
 from acquisition.link import Link
-from acquisition.monitor import (
-    CSV_COLUMNS,
-    FlightRecorder,
-    MonitorResult,
-    MonitorState,
-    StationPlan,
-    StopReason,
-    _SeqCounter,
-    load_station_plan,
-    monitor,
-)
+from acquisition.link_quality import SeqCounter
+from acquisition.monitor import MonitorResult, StopReason, monitor
+from acquisition.monitor_state import MonitorState
+from acquisition.recording_files import CSV_COLUMNS
 from acquisition.simulator.server import SimulatedVehicle
+from acquisition.station_tracker import StationPlan, load_station_plan
 from acquisition.telemetry.tlog import read_tlog
 from acquisition.transfer import upload_mission
 from planner.errors import OutputExistsError
-from planner.export import write_outputs
 from planner.mission import Autopilot
 from planner.plan import SurveyPlan
+from planner.plan_folder import write_outputs
 from planner.spec import load_spec
 from planner.survey import plan_survey
 
@@ -484,83 +479,6 @@ def planned_small(tmp_path: Path) -> tuple[Path, SurveyPlan]:
     return tmp_path / "plan", plan
 
 
-class Relay:
-    """A TCP relay between the monitor and the simulator that a test can cut and restore:
-    cut closes both connections and stops listening (reconnections are refused)."""
-
-    def __init__(self, upstream_url: str) -> None:
-        host, port = upstream_url.removeprefix("tcp://").rsplit(":", 1)
-        self.upstream = (host, int(port))
-        self.port = 0
-        self._listen: socket.socket | None = None
-        self._pairs: list[tuple[socket.socket, socket.socket]] = []
-        self._lock = threading.Lock()
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, daemon=True)
-
-    @property
-    def url(self) -> str:
-        return f"tcp://127.0.0.1:{self.port}"
-
-    def __enter__(self) -> Relay:
-        self.restore()
-        self._thread.start()
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self._stop.set()
-        self._thread.join(timeout=2)
-        self.cut()
-
-    def restore(self) -> None:
-        sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
-        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        sock.bind(("127.0.0.1", self.port))
-        sock.listen(4)
-        self.port = sock.getsockname()[1]
-        with self._lock:
-            self._listen = sock
-
-    def cut(self) -> None:
-        with self._lock:
-            socks = [s for pair in self._pairs for s in pair]
-            if self._listen is not None:
-                socks.append(self._listen)
-            self._pairs, self._listen = [], None
-        for s in socks:
-            with contextlib.suppress(OSError):
-                s.shutdown(socket.SHUT_RDWR)
-            s.close()
-
-    def _run(self) -> None:
-        while not self._stop.is_set():
-            with self._lock:
-                listen = self._listen
-                pairs = list(self._pairs)
-            socks = [s for pair in pairs for s in pair] + ([listen] if listen else [])
-            try:
-                readable, _, _ = select.select(socks, [], [], 0.02) if socks else ([], [], [])
-            except (OSError, ValueError):
-                continue
-            if not socks:
-                time.sleep(0.02)
-            for s in readable:
-                try:
-                    if s is listen:
-                        client, _ = s.accept()
-                        server = socket.create_connection(self.upstream)
-                        with self._lock:
-                            self._pairs.append((client, server))
-                        continue
-                    pair = next(p for p in pairs if s in p)
-                    data = s.recv(65536)
-                    if not data:
-                        raise OSError("closed")
-                    (pair[1] if s is pair[0] else pair[0]).sendall(data)
-                except (OSError, StopIteration):
-                    continue
-
-
 def gcs_start_mission(url: str) -> None:
     """Arm and start the mission with COMMAND_LONG, as a ground station does."""
     with Link.open(url, heartbeat_timeout_s=5.0, source_component=191) as link:
@@ -958,7 +876,7 @@ def test_loss_is_counted_exactly_for_any_bursts_and_swaps(
             delivered[k], delivered[k + 1] = delivered[k + 1], delivered[k]
             late_truth += 1
             last_swap = k
-    counter = _SeqCounter()
+    counter = SeqCounter()
     for number in delivered:
         counter.add((number + start) % 256)
     assert counter.received == len(delivered)

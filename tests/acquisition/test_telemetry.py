@@ -17,6 +17,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from shared_data import SHARED_DATA
 
+from acquisition.attitude import roll_pitch_yaw_deg_from_quaternion
 from acquisition.errors import TelemetryError
 from acquisition.telemetry import FORMATS, detect_format, read_log
 from acquisition.telemetry.gpstime import (
@@ -34,7 +35,6 @@ from acquisition.telemetry.gpstime import (
 )
 from acquisition.telemetry.model import FlightLog
 from acquisition.telemetry.mrk import read_mrk_table
-from acquisition.telemetry.tlog import euler_deg_from_quaternion
 from acquisition.telemetry.tracks import parse_angle_deg
 
 REAL = SHARED_DATA / "ardupilot_sitl_plane"
@@ -395,7 +395,7 @@ def test_tlog_image_captured_and_failed_captures(tmp_path: Path) -> None:
 @settings(max_examples=200, deadline=None)
 @given(st.floats(-179, 179), st.floats(-89, 89), st.floats(0, 359.99))
 def test_quaternion_to_euler_round_trip(roll: float, pitch: float, yaw: float) -> None:
-    r, p, y = euler_deg_from_quaternion(*_quaternion(roll, pitch, yaw))
+    r, p, y = roll_pitch_yaw_deg_from_quaternion(*_quaternion(roll, pitch, yaw))
     assert float(r) == pytest.approx(roll, abs=1e-6)
     assert float(p) == pytest.approx(pitch, abs=1e-6)
     assert (float(y) - yaw + 180) % 360 - 180 == pytest.approx(0, abs=1e-6)

@@ -15,12 +15,12 @@ from shared_data import SHARED_DATA
 
 from acquisition.exif import GeoTag, strip_gps, write_geotag
 from acquisition.simulator.flight import FlightSimulator
-from planner.export import write_outputs
 from planner.formats.qgc_plan import read_plan
 from planner.mission import Autopilot, VehicleType
+from planner.plan_folder import write_outputs
 from planner.spec import load_spec, parse_spec
 from planner.survey import plan_polygons, plan_survey
-from processing.inputs import track_heading_deg
+from processing.track import track_heading_deg
 from sfap.cli import cli
 
 GARFIELD = SHARED_DATA / "garfield_rgb"
@@ -315,7 +315,9 @@ def test_a_flat_plan_with_a_dem_takes_off_from_the_dem(plans: tuple[Path, Path])
 
 
 def test_images_flown_from_a_terrain_plan_use_its_dem(terrain_plan: Path, tmp_path: Path) -> None:
-    from processing.inputs import frames_from_plan, frames_local_frame, images_ground
+    from processing.frames import frames_local_frame
+    from processing.ground_choice import images_ground
+    from processing.plan_frames import frames_from_plan
 
     plan = tmp_path / "plan"
     shutil.copytree(terrain_plan, plan)

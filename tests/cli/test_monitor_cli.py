@@ -9,7 +9,6 @@ import csv
 import json
 import math
 import os
-import select
 import signal
 import socket
 import threading
@@ -22,6 +21,7 @@ import pytest
 from click.testing import CliRunner, Result
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 from pyproj import Geod
+from tcp_relay import Relay
 
 from acquisition.simulator.server import SimulatedVehicle
 from acquisition.telemetry.tlog import read_tlog
@@ -120,84 +120,13 @@ def test_monitor_records_a_planned_flight_whole(tmp_path: Path, small_plan: tupl
     assert (out / "flight.tlog").read_bytes() == before
 
 
-class _Relay:
-    """A TCP relay to the simulator that the test cuts (connections closed, new ones
-    refused) and restores."""
-
-    def __init__(self, upstream_url: str) -> None:
-        host, port = upstream_url.removeprefix("tcp://").rsplit(":", 1)
-        self.upstream = (host, int(port))
-        self.port = 0
-        self.listen: socket.socket | None = None
-        self.pairs: list[tuple[socket.socket, socket.socket]] = []
-        self.lock = threading.Lock()
-        self.stop = threading.Event()
-        self.restore()
-        self.thread = threading.Thread(target=self._run, daemon=True)
-        self.thread.start()
-
-    @property
-    def url(self) -> str:
-        return f"tcp://127.0.0.1:{self.port}"
-
-    def restore(self) -> None:
-        sock = socket.socket()
-        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        sock.bind(("127.0.0.1", self.port))
-        sock.listen(4)
-        self.port = sock.getsockname()[1]
-        with self.lock:
-            self.listen = sock
-
-    def cut(self) -> None:
-        with self.lock:
-            socks = [s for p in self.pairs for s in p] + ([self.listen] if self.listen else [])
-            self.pairs, self.listen = [], None
-        for s in socks:
-            with contextlib.suppress(OSError):
-                s.shutdown(socket.SHUT_RDWR)
-            s.close()
-
-    def close(self) -> None:
-        self.stop.set()
-        self.thread.join(timeout=2)
-        self.cut()
-
-    def _run(self) -> None:
-        while not self.stop.is_set():
-            with self.lock:
-                listen, pairs = self.listen, list(self.pairs)
-            socks = [s for p in pairs for s in p] + ([listen] if listen else [])
-            if not socks:
-                time.sleep(0.02)
-                continue
-            try:
-                readable, _, _ = select.select(socks, [], [], 0.02)
-            except (OSError, ValueError):
-                continue
-            for s in readable:
-                try:
-                    if s is listen:
-                        client, _ = s.accept()
-                        with self.lock:
-                            self.pairs.append((client, socket.create_connection(self.upstream)))
-                        continue
-                    pair = next(p for p in pairs if s in p)
-                    data = s.recv(65536)
-                    if not data:
-                        raise OSError("closed")
-                    (pair[1] if s is pair[0] else pair[0]).sendall(data)
-                except (OSError, StopIteration):
-                    continue
-
-
 def test_monitor_says_it_lost_the_link_and_reconnected(tmp_path: Path, small_plan: tuple) -> None:
     plan_dir, mission, summary = small_plan
     n = summary["photo_count"]
     out = tmp_path / "flight"
     with SimulatedVehicle(speedup=60, home=mission.home, boot_delay_s=0, gps_fix_s=0) as v:
         v.load_mission(mission.items)
-        relay = _Relay(v.url_for_client)
+        relay = Relay(v.url_for_client).open()
 
         def cut_and_restore() -> None:
             deadline = time.monotonic() + 30
@@ -283,7 +212,7 @@ def test_a_link_that_does_not_come_back_is_exit_1_with_the_recording_kept(
     plan_dir, mission, _ = small_plan
     out = tmp_path / "flight"
     with SimulatedVehicle(speedup=10, home=mission.home, boot_delay_s=0, gps_fix_s=0) as v:
-        relay = _Relay(v.url_for_client)
+        relay = Relay(v.url_for_client).open()
 
         def cut_for_good() -> None:
             deadline = time.monotonic() + 15

@@ -18,9 +18,9 @@ from acquisition.link import Link
 from acquisition.mavlink_items import is_global_frame, plain_frame
 from acquisition.simulator.server import SimulatedVehicle
 from acquisition.transfer import upload_mission
-from planner.export import write_outputs
 from planner.formats import read_mission
 from planner.mission import MavCmd, MavFrame
+from planner.plan_folder import write_outputs
 from planner.spec import load_spec
 from planner.survey import plan_survey
 

@@ -29,9 +29,9 @@ from pyproj import Geod
 from shapely.geometry import Polygon
 
 from planner.errors import SpecError
-from planner.export import write_outputs
 from planner.fixed_wing import G_M_S2, turn_radius_m
 from planner.mission import MavCmd
+from planner.plan_folder import write_outputs
 from planner.spec import parse_spec
 from planner.survey import plan_polygons
 from sfap.cli import cli

@@ -13,8 +13,8 @@ import pytest
 from survey_oracles import MISSIONS, ardupilot_distance_m, make_spec, replay_at_loop_rate
 from test_survey import to_lonlat_polygon
 
-from planner.export import write_outputs
 from planner.mission import Autopilot, MavCmd, MavFrame
+from planner.plan_folder import write_outputs
 from planner.spec import load_spec
 from planner.survey import plan_polygons, plan_survey
 

@@ -15,9 +15,16 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from processing.accuracy import AccuracyError, PinholeView, assess_accuracy, intersect_rays, table_3_2
+from processing.accuracy import (
+    MAX_TRIANGULATION_PX,
+    AccuracyError,
+    PinholeView,
+    assess_accuracy,
+    intersect_rays,
+    table_3_2,
+)
 from processing.gcp import Observation
-from processing.similarity import SimilarityError, fit_similarity
+from processing.similarity import SimilarityError, fit_horizontal_similarity, fit_similarity
 
 FOCAL_PX = 3000.0
 WIDTH_PX, HEIGHT_PX = 4000, 3000
@@ -43,10 +50,12 @@ def _nadir_cam_from_world(centre: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return r, -r @ centre
 
 
-def _scene(sigma_px: float, seed: int) -> dict[str, object]:
+def _scene(sigma_px: float, seed: int, relief_m: float = 3.0) -> dict[str, object]:
     rng = np.random.default_rng(seed)
     names = [f"p{k}" for k in range(12)]
-    ground = {n: np.array([rng.uniform(0, 80), rng.uniform(0, 60), rng.uniform(-3, 3)]) for n in names}
+    ground = {
+        n: np.array([rng.uniform(0, 80), rng.uniform(0, 60), rng.uniform(-relief_m, relief_m)]) for n in names
+    }
     # Model frame = s R ground + t (what an SfM model is: arbitrary scale, rotation, origin).
     s, rot, t = 0.037, _rotation(rng), np.array([5.0, -2.0, 11.0])
     views: dict[str, PinholeView] = {}
@@ -183,3 +192,159 @@ def test_rays_meet_at_the_point() -> None:
     d = p - origins
     d /= np.linalg.norm(d, axis=1, keepdims=True)
     assert np.allclose(intersect_rays(origins, d), p, atol=1e-9)
+
+
+def _zero_heights(ground: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """The survey as a gcp_list.txt with unknown heights gives it: east, north, 0.0."""
+    return {n: np.array([v[0], v[1], 0.0]) for n, v in ground.items()}
+
+
+def _horizontal_rmse(result: object, truth: dict[str, np.ndarray], names: list[str]) -> float:
+    placed = result.placed_xyz_m  # type: ignore[attr-defined]
+    return math.sqrt(np.mean([np.sum((placed[n][:2] - truth[n][:2]) ** 2) for n in names]))
+
+
+@pytest.mark.parametrize("sigma_px", [0.0, 1.0])
+def test_unknown_heights_over_relief_horizontal_fit_within_noise_seven_parameter_biased(
+    sigma_px: float,
+) -> None:
+    # A hilly site (points +-15 m about a mean) surveyed in plan only: gcp_list.txt says 0.0 for
+    # every height. The horizontal fit places the check points within the noise; the 7-parameter
+    # fit to the 0.0 heights flattens the relief: its scale shrinks by about var(z) / var(x, y, z).
+    gsd_m = HEIGHT_M / FOCAL_PX
+    per_ray_m = max(sigma_px, 1e-6) * gsd_m * math.sqrt(2)
+    for seed in range(4):
+        sc = _scene(sigma_px, seed=300 + seed, relief_m=15.0)
+        names, truth = sc["names"], sc["ground"]
+        flat = _zero_heights(truth)
+        common = {"ground_xyz_m": flat, "observations": sc["obs"], "views": sc["views"]}
+        horizontal = assess_accuracy(**common, control=names[:6], check=names[6:])
+        seven = assess_accuracy(**common, control=names[:6], check=names[6:], heights_known=True)
+        assert not horizontal.heights_known and horizontal.check is not None
+        assert horizontal.check.rmse_z_m is None and horizontal.check.rmse_total_m is None
+        assert "tilt fitted" in horizontal.fit
+        assert _horizontal_rmse(horizontal, truth, names[6:]) < 2.0 * per_ray_m
+        assert horizontal.similarity.scale == pytest.approx(1 / sc["s"], rel=max(1e-9, 2e-3 * sigma_px))
+        # The seven-parameter fit: tens of centimetres to metres off, its scale short by the relief.
+        assert _horizontal_rmse(seven, truth, names[6:]) > 5.0 * per_ray_m + 0.2
+        xyz = np.array([truth[n] for n in names[:6]])
+        shrink = np.var(xyz[:, 2]) / np.sum(np.var(xyz, axis=0))
+        assert seven.similarity.scale * sc["s"] < 1.0 - 0.3 * shrink
+        assert "Z: not measurable" in table_3_2(horizontal)
+
+
+def test_unknown_heights_on_level_ground_keep_the_model_level() -> None:
+    # Targets on level ground (1 cm of relief): their plan positions cannot fix a tilt, so the
+    # model is levelled on them and the check points come back within the noise.
+    sigma_px = 1.0
+    per_ray_m = sigma_px * HEIGHT_M / FOCAL_PX * math.sqrt(2)
+    sc = _scene(sigma_px, seed=41, relief_m=0.01)
+    names = sc["names"]
+    r = assess_accuracy(
+        ground_xyz_m=_zero_heights(sc["ground"]),
+        observations=sc["obs"],
+        views=sc["views"],
+        control=names[:6],
+        check=names[6:],
+    )
+    assert "levelled" in r.fit
+    assert _horizontal_rmse(r, sc["ground"], names[6:]) < 2.0 * per_ray_m
+    # Placed heights are relative to the control points' mean, which is the 0.0 datum.
+    assert abs(np.mean([r.placed_xyz_m[n][2] for n in names[:6]])) < 1e-9
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), scale=st.floats(1e-2, 1e2), n=st.integers(4, 20))
+def test_horizontal_fit_recovers_any_similarity_from_plan_positions(seed: int, scale: float, n: int) -> None:
+    rng = np.random.default_rng(seed)
+    ground = np.column_stack([rng.uniform(-50, 50, n), rng.uniform(-50, 50, n), rng.uniform(-10, 10, n)])
+    rot = _rotation(rng)
+    model = (ground @ rot) / scale + rng.normal(scale=100.0, size=3)  # ground = scale R model + t
+    up = rot.T @ np.array([0.0, 0.0, 1.0])
+    fit = fit_horizontal_similarity(model, ground[:, :2], up_hint=up)
+    placed = fit.similarity.apply(model)
+    assert np.allclose(placed[:, :2], ground[:, :2], atol=1e-6 * 50)
+    # Heights come back up to the datum shift (their mean goes to 0.0).
+    assert np.allclose(placed[:, 2] - placed[:, 2].mean(), ground[:, 2] - ground[:, 2].mean(), atol=1e-6 * 50)
+    assert fit.similarity.scale == pytest.approx(scale, rel=1e-7)
+
+
+def test_a_mis_marked_observation_is_dropped_and_named() -> None:
+    # One mark of a point seen in three frames or more is moved 300 px (a wrong target): it is
+    # left out with a warning naming the point and the image, and the point is still used.
+    sc = _scene(0.5, seed=7)
+    names = sc["names"]
+    counts = {n: sum(o.point == n for o in sc["obs"]) for n in names}
+    victim = next(n for n in names[:6] if counts[n] >= 3)
+    bad = next(o for o in sc["obs"] if o.point == victim)
+    obs = [
+        Observation(point=o.point, image=o.image, x_px=o.x_px + 300.0, y_px=o.y_px) if o is bad else o
+        for o in sc["obs"]
+    ]
+    r = assess_accuracy(
+        ground_xyz_m=sc["ground"], observations=obs, views=sc["views"], control=names[:6], check=names[6:]
+    )
+    assert [(d.point, d.image) for d in r.dropped_marks] == [(victim, bad.image)]
+    assert r.dropped_marks[0].residual_px > MAX_TRIANGULATION_PX
+    assert any(victim in w and bad.image in w for w in r.warnings)
+    assert victim not in {t.name for t in r.unused}
+    point = next(p for p in r.residuals if p.name == victim)
+    assert point.n_images == counts[victim] - 1
+    assert math.hypot(point.dx_m, point.dy_m) < 0.05  # 0.5 px marks, 2.5 cm pixels
+
+
+def test_two_marks_that_disagree_leave_the_point_out() -> None:
+    # With two marks there is no majority: the point is listed with the reason, not guessed.
+    sc = _scene(0.0, seed=8)
+    names = sc["names"]
+    victim = names[6]
+    mine = [o for o in sc["obs"] if o.point == victim][:2]
+    # Moved across the baseline (along it, two rays still meet: only depth changes).
+    base = sc["rot"].T @ (sc["views"][mine[1].image].centre - sc["views"][mine[0].image].centre)  # ground
+    across = np.array([-base[1], base[0]]) / math.hypot(base[0], base[1])
+    shift = 200.0 * np.array([across[0], -across[1]])  # image y points south
+    obs = [o for o in sc["obs"] if o.point != victim] + [
+        mine[0],
+        Observation(
+            point=victim, image=mine[1].image, x_px=mine[1].x_px + shift[0], y_px=mine[1].y_px + shift[1]
+        ),
+    ]
+    r = assess_accuracy(
+        ground_xyz_m=sc["ground"], observations=obs, views=sc["views"], control=names[:6], check=names[6:]
+    )
+    assert victim in {t.name for t in r.unused}
+    assert not r.dropped_marks
+
+
+def test_control_far_off_their_survey_is_flagged_and_good_control_is_not() -> None:
+    sc = _scene(0.5, seed=9)
+    names = sc["names"]
+    common = {"observations": sc["obs"], "views": sc["views"], "control": names[:6], "check": names[6:]}
+    good = assess_accuracy(ground_xyz_m=sc["ground"], **common)
+    # A pixel on the ground: height above the points over the focal length (nadir frames).
+    mean_z = np.mean([sc["ground"][n][2] for n in names[:6]])
+    assert good.ground_pixel_m == pytest.approx((HEIGHT_M - mean_z) / FOCAL_PX, rel=0.1)
+    assert not good.warnings
+    rng = np.random.default_rng(0)
+    gps = {n: v + np.array([*rng.normal(scale=1.5, size=2), 0.0]) for n, v in sc["ground"].items()}
+    r = assess_accuracy(ground_xyz_m=gps, **common)
+    assert any("marking errors do not explain it" in w for w in r.warnings)
+
+
+@pytest.mark.parametrize("heights", ["known", "unknown"])
+def test_a_control_point_off_its_survey_stands_out_when_left_out(heights: str) -> None:
+    # One control point surveyed 1 m off (a blunder): fitted without it, it misses by 1 m, the
+    # largest left-out miss of all.
+    sc = _scene(0.5, seed=12)
+    names = sc["names"]
+    ground = sc["ground"] if heights == "known" else _zero_heights(sc["ground"])
+    bad = names[2]
+    ground = {n: v + (np.array([0.6, -0.8, 0.0]) if n == bad else 0.0) for n, v in ground.items()}
+    r = assess_accuracy(
+        ground_xyz_m=ground, observations=sc["obs"], views=sc["views"], control=names[:7], check=names[7:]
+    )
+    left_out = {p.name: p.left_out_horizontal_m for p in r.residuals if p.role == "control"}
+    assert left_out[bad] == pytest.approx(1.0, abs=0.15)
+    # The others carry the blunder in their own fits (most near it), but it stands out.
+    assert all(v is not None and v < 0.75 * left_out[bad] for n, v in left_out.items() if n != bad)
+    assert all(p.left_out_horizontal_m is None for p in r.residuals if p.role == "check")

@@ -1,14 +1,11 @@
-"""The scan-line rasterizer against shapely, coverage statistics, gaps of a block, GeoTIFF output."""
+"""The scan-line rasterizer against shapely, coverage statistics, gaps of a block."""
 
 from __future__ import annotations
 
 import math
-import os
-from pathlib import Path
 
 import numpy as np
 import pytest
-import rasterio
 import shapely
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
@@ -25,7 +22,6 @@ from processing.coverage import (
     gap_polygons,
     min_value_raster,
     view_count_raster,
-    write_geotiff,
 )
 from processing.errors import ProcessingError
 from processing.footprints import project_footprints
@@ -219,26 +215,6 @@ def test_a_removed_strip_is_found_with_its_true_area() -> None:
     assert gaps[0].symmetric_difference(truth).area < truth.length * cell
     # A higher threshold also finds the thinly seen band around the gap.
     assert sum(g.area for g in gap_polygons(view, area_mask(area, grid), min_views=4)) > gaps[0].area
-
-
-def test_write_geotiff_round_trips_and_leaves_no_temporary(tmp_path: Path) -> None:
-    crs = CRS.from_epsg(32613)
-    grid = Grid.from_bounds((500_000.0, 4_400_000.0, 500_100.0, 4_400_050.0), 0.5, crs)
-    counts = np.arange(grid.rows * grid.cols, dtype=np.uint16).reshape(grid.shape)
-    path = write_geotiff(tmp_path / "out" / "coverage.tif", counts, grid)
-    gsd = np.where(counts % 3 == 0, np.nan, counts / 7.0)
-    write_geotiff(tmp_path / "out" / "gsd.tif", gsd, grid)
-    assert sorted(os.listdir(tmp_path / "out")) == ["coverage.tif", "gsd.tif"]
-    with rasterio.open(path) as ds:
-        assert ds.crs.to_epsg() == 32613
-        assert tuple(ds.transform)[:6] == (0.5, 0.0, 500_000.0, 0.0, -0.5, 4_400_050.0)
-        assert ds.nodata is None
-        np.testing.assert_array_equal(ds.read(1), counts)
-    with rasterio.open(tmp_path / "out" / "gsd.tif") as ds:
-        assert math.isnan(ds.nodata)
-        np.testing.assert_array_equal(ds.read(1, masked=True).mask, np.isnan(gsd))
-    with pytest.raises(ProcessingError, match="no CRS"):
-        write_geotiff(tmp_path / "x.tif", counts, Grid.from_bounds((0, 0, 100, 50), 0.5))
 
 
 def test_progress_is_reported_and_many_polygons_switch_to_uint32() -> None:

@@ -28,13 +28,14 @@ from processing.check import run_check
 from processing.footprints import project_footprints, world_from_camera
 from processing.frames import AltitudeReference
 from processing.ground import FlatGround
+from processing.ground_choice import ground_from_options
+from processing.image_frames import read_image_frames
 from processing.image_tags import (
     FULL_FRAME_DIAGONAL_MM,
     CameraConfidence,
     display_name,
     pix4d_from_dji_gimbal,
 )
-from processing.inputs import ground_from_options, read_image_frames
 from sfap.cli import cli
 
 GARFIELD = SHARED_DATA / "garfield_rgb"
@@ -286,9 +287,9 @@ def test_some_exposures_unknown_leave_their_blur_not_computed(card: Path) -> Non
     assert any("blur not computed for them" in n for n in images.notes)
     choice = ground_from_options(frames=images.frames, ground_elevation_m=GROUND_M)
     result = run_check(choice.frames, ground=choice.ground)
-    assert result.blur_px is not None
+    assert result.stereo.blur_px is not None
     unknown = np.isnan(images.frames.exposure_s)
-    assert np.isnan(result.blur_px[unknown]).all()
+    assert np.isnan(result.stereo.blur_px[unknown]).all()
     figures = dict(result.key_figures())
     assert "blur not computed for" in figures["motion blur"] and "median" in figures["motion blur"]
 
@@ -382,7 +383,7 @@ def test_dji_oblique_frames_are_not_checked_as_nadir(card: Path) -> None:
     result = run_check(choice.frames, ground=choice.ground)
     # 45 deg off nadir toward the east: every frame is convergent, and its centre lands one
     # height east of the camera.
-    assert result.convergent_pct == 100.0
+    assert result.stereo.convergent_pct == 100.0
     k = 0
     x_cam = result.frame.to_xy(result.frames.lon_deg[k], result.frames.lat_deg[k])[0]
     assert result.centres_xy[k, 0] - x_cam == pytest.approx(result.height_agl_m[k], rel=1e-6)

@@ -8,7 +8,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.text import Text
 
-from processing.report import place_labels
+from processing.report_maps import place_labels
 
 
 @pytest.mark.parametrize("count", [2, 12, 40])

@@ -1,0 +1,54 @@
+"""json_safe: random nested values built together with what strict JSON must hold for them (an
+independent construction), numpy scalars and arrays, NaN and infinities among them."""
+
+from __future__ import annotations
+
+import json
+import math
+from typing import Any
+
+import numpy as np
+from hypothesis import given
+from hypothesis import strategies as st
+
+from planner.outputs import json_safe
+
+
+def _leaf() -> st.SearchStrategy[tuple[Any, Any]]:
+    """(value, what JSON must hold for it)."""
+    plain = st.one_of(
+        st.integers(-(10**9), 10**9).map(lambda v: (v, v)),
+        st.floats(allow_nan=False, allow_infinity=False).map(lambda v: (v, v)),
+        st.sampled_from([math.nan, math.inf, -math.inf]).map(lambda v: (v, None)),
+        st.text(max_size=5).map(lambda v: (v, v)),
+        st.booleans().map(lambda v: (v, v)),
+        st.none().map(lambda v: (v, v)),
+    )
+    numpy = st.one_of(
+        st.floats(width=32, allow_nan=False, allow_infinity=False).map(lambda v: (np.float32(v), float(v))),
+        st.integers(-(2**31), 2**31 - 1).map(lambda v: (np.int64(v), v)),
+        st.sampled_from([np.float64(math.nan), np.float32(math.nan), np.float32(-math.inf)]).map(
+            lambda v: (v, None)
+        ),
+        st.booleans().map(lambda v: (np.bool_(v), v)),
+        st.lists(st.floats(-1e9, 1e9), max_size=4).map(lambda v: (np.array(v, dtype=np.float64), v)),
+    )
+    return st.one_of(plain, numpy)
+
+
+def _nest(children: st.SearchStrategy[tuple[Any, Any]]) -> st.SearchStrategy[tuple[Any, Any]]:
+    as_list = st.lists(children, max_size=4).map(lambda kids: ([k for k, _ in kids], [v for _, v in kids]))
+    as_tuple = st.lists(children, max_size=4).map(
+        lambda kids: (tuple(k for k, _ in kids), [v for _, v in kids])
+    )
+    as_dict = st.dictionaries(st.one_of(st.text(max_size=4), st.integers(0, 99)), children, max_size=4).map(
+        lambda d: ({k: raw for k, (raw, _) in d.items()}, {str(k): want for k, (_, want) in d.items()})
+    )
+    return st.one_of(as_list, as_tuple, as_dict)
+
+
+@given(st.recursive(_leaf(), _nest, max_leaves=20))
+def test_json_safe_gives_what_strict_json_holds(pair: tuple[Any, Any]) -> None:
+    raw, want = pair
+    text = json.dumps(json_safe(raw), allow_nan=False)  # strict JSON: raises on NaN or numpy
+    assert json.loads(text) == json.loads(json.dumps(want, allow_nan=False))
