@@ -25,11 +25,12 @@ system-deps:
 	    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq libimage-exiftool-perl; \
 	  else echo "the tests need exiftool: sudo apt-get install libimage-exiftool-perl" >&2; exit 2; fi; }
 
+# Two pytest-xdist workers: every test binds free ports and writes only its tmp_path.
 test: install system-deps
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n 2
 
 test-fast: install system-deps
-	$(BIN)/python -m pytest -q -m "not slow"
+	$(BIN)/python -m pytest -q -n 2 -m "not slow"
 
 lint: install
 	$(BIN)/ruff check .

@@ -1,5 +1,11 @@
 """The MAVLink adapter for mission items: the only module that knows degE7 and MISSION_ITEM_INT.
 
+It also holds the mission protocol's constants that the ground station and the simulated
+vehicle share: :class:`MissionType`, :class:`MissionResult` (MAV_MISSION_RESULT), ArduPilot's
+home item (:func:`has_home_item`), the commands ArduPilot stores with a location
+(:data:`ARDUPILOT_LOCATION_COMMANDS`) and the parameters it lets be NaN
+(:func:`ardupilot_nan_allowed`).
+
 Everything above it (:mod:`acquisition.transfer`, the CLI) speaks
 :class:`planner.mission.MissionItem`: WGS84 degrees, metres, None for "no value". This module
 turns such an item into the MISSION_ITEM_INT message that goes on the wire, and the
@@ -27,7 +33,7 @@ from typing import Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from planner.mission import HomePosition, MavFrame, MissionItem
+from planner.mission import Autopilot, HomePosition, MavCmd, MavFrame, MissionItem
 
 
 class MissionType(IntEnum):
@@ -36,6 +42,70 @@ class MissionType(IntEnum):
     MISSION = 0
     FENCE = 1
     RALLY = 2
+
+
+class MissionResult(IntEnum):
+    """MAV_MISSION_RESULT: how a vehicle answers a mission transfer (MISSION_ACK.type)."""
+
+    ACCEPTED = 0
+    ERROR = 1
+    UNSUPPORTED_FRAME = 2
+    UNSUPPORTED = 3
+    NO_SPACE = 4
+    INVALID = 5
+    INVALID_PARAM1 = 6
+    INVALID_PARAM2 = 7
+    INVALID_PARAM3 = 8
+    INVALID_PARAM4 = 9
+    INVALID_PARAM5_X = 10
+    INVALID_PARAM6_Y = 11
+    INVALID_PARAM7 = 12
+    INVALID_SEQUENCE = 13
+    DENIED = 14
+    OPERATION_CANCELLED = 15
+
+
+#: What params 1-7 of a mission item are called in messages to a person.
+PARAM_NAMES = {
+    1: "param 1",
+    2: "param 2",
+    3: "param 3",
+    4: "param 4",
+    5: "param 5 (latitude)",
+    6: "param 6 (longitude)",
+    7: "param 7 (altitude)",
+}
+
+
+def has_home_item(autopilot: Autopilot, mission_type: MissionType | int) -> bool:
+    """True when the vehicle keeps its home as item 0 of the list (ArduPilot's mission; PX4
+    has no home item, and fences and rally points have none)."""
+    return autopilot is Autopilot.ARDUPILOT and int(mission_type) == MissionType.MISSION
+
+
+#: Commands ArduPilot stores with a location (AP_Mission's ``copy_location``): params 5-7 are
+#: latitude, longitude and altitude in a global frame, and read back so. The navigation
+#: commands (:attr:`planner.mission.MavCmd.is_nav`) and NAV_CONTINUE_AND_CHANGE_ALT (30),
+#: NAV_PAYLOAD_PLACE (94), DO_SET_HOME, DO_LAND_START, DO_SET_ROI_LOCATION and DO_SET_ROI (201).
+ARDUPILOT_LOCATION_COMMANDS: frozenset[int] = frozenset(
+    {int(command) for command in MavCmd if command.is_nav}
+    | {30, 94, MavCmd.DO_SET_HOME, MavCmd.DO_LAND_START, MavCmd.DO_SET_ROI_LOCATION, 201}
+)
+
+#: AP_Mission::sanity_check_params: the params (1-4) that may be NaN, per command; any other
+#: NaN is refused with MAV_MISSION_INVALID_PARAMn.
+_ARDUPILOT_NAN_ALLOWED: dict[int, frozenset[int]] = {
+    MavCmd.NAV_WAYPOINT: frozenset({4}),
+    MavCmd.NAV_LAND: frozenset({4}),
+    MavCmd.NAV_TAKEOFF: frozenset({4}),
+    MavCmd.NAV_VTOL_TAKEOFF: frozenset({4}),
+    MavCmd.NAV_VTOL_LAND: frozenset({3, 4}),
+}
+
+
+def ardupilot_nan_allowed(command: int) -> frozenset[int]:
+    """The params (1-4) of ``command`` that ArduPilot accepts as NaN ("leave unchanged")."""
+    return _ARDUPILOT_NAN_ALLOWED.get(int(command), frozenset())
 
 
 _DEG_E7 = 10_000_000
@@ -67,6 +137,15 @@ def plain_frame(frame: MavFrame | int) -> MavFrame:
     """The plain (non-INT) frame that means the same as ``frame``."""
     value = MavFrame(int(frame))
     return _PLAIN_FRAME.get(value, value)
+
+
+def plain_wire_frame(frame: int) -> int:
+    """Like :func:`plain_frame` for a frame number off the wire: numbers that are not a
+    :class:`MavFrame` (local frames) pass through unchanged."""
+    try:
+        return int(plain_frame(frame))
+    except ValueError:
+        return int(frame)
 
 
 def int_frame(frame: MavFrame | int) -> MavFrame:

@@ -316,7 +316,8 @@ class MissionFollower:
         self._thread.start()
 
     def _read(self, channel: MissionChannel) -> None:
-        from .transfer import download_mission, verify_readback
+        from .readback import verify_readback
+        from .transfer import download_mission
 
         wanted_since = self._wanted_since
         try:

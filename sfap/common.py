@@ -27,7 +27,7 @@ def connect_options(function: F) -> F:
     """The options of every command that talks to a vehicle, defined once: --connect (the URL
     carries a serial port's baud rate), --signing-key, --require-signing (MAVLink 2 signing)
     and --heartbeat-timeout-s."""
-    from acquisition.link import SIGNING_KEY_ENV  # here: only vehicle commands import pymavlink
+    from acquisition.signing import SIGNING_KEY_ENV  # here: only vehicle commands import pymavlink
 
     options = (
         click.option(

@@ -13,11 +13,11 @@ line. What it does, and which real behaviour each part copies:
   * ArduPilot (copied from ArduPilot 4.5's MissionItemProtocol and AP_Mission): requests
     items with the legacy MISSION_REQUEST (id 40); accepts MISSION_ITEM_INT (and MISSION_ITEM,
     with a STATUSTEXT warning); answers an item with an unexpected seq with
-    MAV_MISSION_INVALID_SEQUENCE and carries on; re-requests after 1 s without an item and
-    cancels (MAV_MISSION_OPERATION_CANCELLED) after 8 s; writes items as they arrive, so a
+    MissionResult.INVALID_SEQUENCE and carries on; re-requests after 1 s without an item and
+    cancels (MissionResult.OPERATION_CANCELLED) after 8 s; writes items as they arrive, so a
     failed upload leaves a partial mission; stores home as item 0 (what is uploaded as item 0
     is ignored: home reads back as zeros until the GPS has a fix, then as the home position);
-    refuses uploads with MAV_MISSION_NO_SPACE ("Only 0 items are supported") for
+    refuses uploads with MissionResult.NO_SPACE ("Only 0 items are supported") for
     ``boot_delay_s`` after boot; stores items compressed (see :func:`ardupilot_store`);
     rejects NaN in params 1-4 except where AP_Mission allows it; denies downloads during an
     upload; does not repeat the final ACK when the last item is sent again.
@@ -48,21 +48,20 @@ line. What it does, and which real behaviour each part copies:
 - Optionally a .tlog of what it sends (before link faults): per packet an 8-byte big-endian
   microsecond UTC time stamp (simulated time) then the raw packet, as MAVProxy and QGC write.
 
-Timers of the protocol (re-requests, cancellation, latency) run on the wall clock; the flight,
-the boot delay and the GPS fix run on simulated time (``speedup`` x the wall clock).
+Every timer (re-requests, cancellation, latency, the flight's steps) runs on the vehicle's clock
+(``clock``: the wall clock, or a :class:`acquisition.clock.VirtualClock` in tests); the flight,
+the boot delay and the GPS fix run on flight time, ``speedup`` x that clock.
 
 A message is answered in the loop iteration that receives it, and what the link holds back
 (latency, baud rate) leaves when it falls due, not at the next step of the flight.
 
 The parts live in modules of their own: :mod:`.faults` (fault injection), :mod:`.storage` (how
 each autopilot stores items), :mod:`.transport` (URLs and sockets), :mod:`.flight` (the flight
-and its telemetry); this module is the vehicle and its protocol, and re-exports the names
-other code imports from here.
+and its telemetry); this module is the vehicle and its protocol.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import logging
 import math
 import random
@@ -70,65 +69,25 @@ import struct
 import threading
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from planner.errors import InputError, MissionValidationError
+from planner.errors import InputError
 from planner.mission import Autopilot, HomePosition, MissionItem, VehicleType
 
+from ..clock import WALL_CLOCK, Clock
 from ..errors import LinkError
-from ..mavlink_items import to_mission_item_int
-from .camera import FrameCard
-from .faults import FaultConfig, FaultStats, FaultyPipe, Refusal
-from .flight import FlightConfig, FlightSimulator
-from .storage import (
-    MAV_MISSION_ACCEPTED,
-    MAV_MISSION_DENIED,
-    MAV_MISSION_ERROR,
-    MAV_MISSION_INVALID,
-    MAV_MISSION_INVALID_SEQUENCE,
-    MAV_MISSION_NO_SPACE,
-    MAV_MISSION_OPERATION_CANCELLED,
-    MAV_MISSION_UNSUPPORTED,
-    MISSION_TYPE_FENCE,
-    MISSION_TYPE_MISSION,
-    MISSION_TYPE_RALLY,
-    MISSION_TYPES,
-    NO_HOME,
-    WireItem,
-    ardupilot_store,
-    home_wire_item,
-    item_float_message,
-    item_int_message,
-    px4_store,
-    store_item,
-    wire_item_from_message,
-    wire_item_to_mission_item,
+from ..mavlink_items import (
+    MissionType,
 )
-from .transport import ListenAddress, Transport, parse_listen_url
-
-__all__ = [
-    "DEFAULT_HOME",
-    "MISSION_TYPE_FENCE",
-    "MISSION_TYPE_MISSION",
-    "MISSION_TYPE_RALLY",
-    "SIMULATOR_BANNER",
-    "FaultConfig",
-    "FaultStats",
-    "ListenAddress",
-    "Refusal",
-    "SimulatedVehicle",
-    "WireItem",
-    "ardupilot_store",
-    "parse_listen_url",
-    "px4_store",
-    "serve",
-    "wire_item_from_message",
-    "wire_item_to_mission_item",
-]
+from .camera import FrameCard
+from .commands import VehicleCommands
+from .faults import FaultConfig, FaultStats, FaultyPipe
+from .flight import FlightConfig, FlightSimulator
+from .missions import VehicleMissions
+from .transport import Transport, parse_listen_url
 
 log = logging.getLogger(__name__)
 
@@ -147,29 +106,7 @@ _POLL_S = 0.002
 # --- the vehicle --------------------------------------------------------------------------------
 
 
-@dataclass
-class _Upload:
-    mission_type: int
-    count: int
-    sysid: int
-    compid: int
-    expected: int = 0
-    items: list[WireItem] = field(default_factory=list)
-    last_request_s: float = 0.0
-    last_receive_s: float = 0.0
-
-
-@dataclass
-class _Completed:
-    mission_type: int
-    count: int
-    sysid: int
-    compid: int
-    result: int
-    at_s: float
-
-
-class SimulatedVehicle:
+class SimulatedVehicle(VehicleCommands):
     """A simulated ArduPilot or PX4 vehicle on a MAVLink URL (see the module docstring).
 
     Parameters: ``url`` where to listen (``tcpin://HOST:PORT``, ``udpin://HOST:PORT``, port 0
@@ -184,8 +121,10 @@ class SimulatedVehicle:
     mission capacity (ArduPilot 724 including home, PX4 2000); ``flight`` the flight model's
     settings; ``link_baud`` makes the link a serial radio of that many baud (8N1, each way,
     shared with the telemetry; None: as fast as the socket); ``system_id`` /
-    ``component_id`` its MAVLink identity; ``streams_on_request``: periodic telemetry only
-    once a ground station asks for it (SET_MESSAGE_INTERVAL or REQUEST_DATA_STREAM), as
+    ``component_id`` its MAVLink identity; ``clock`` what its loop and timers run on (its
+    thread is a party of a :class:`~acquisition.clock.VirtualClock`); ``streams_on_request``:
+    periodic telemetry only once a ground station asks for it
+    (SET_MESSAGE_INTERVAL or REQUEST_DATA_STREAM), as
     ArduPilot on a serial port (default: True for ArduPilot, False for PX4; see
     :mod:`.flight`); ``follow_mission_home``: before its first flight the vehicle moves to
     the home of the mission it is given (ArduPilot: the uploaded item 0; PX4: the first
@@ -215,6 +154,7 @@ class SimulatedVehicle:
         streams_on_request: bool | None = None,
         follow_mission_home: bool = False,
         frames: FrameCard | None = None,
+        clock: Clock = WALL_CLOCK,
     ) -> None:
         if not (speedup > 0 and math.isfinite(speedup)):
             raise InputError(f"speedup is {speedup}; give a positive number (1 = real time)")
@@ -222,6 +162,7 @@ class SimulatedVehicle:
         self.vehicle_type = VehicleType(vehicle_type)
         self.faults = faults if faults is not None else FaultConfig()
         self.speedup = float(speedup)
+        self.clock = clock
         self.address = parse_listen_url(url)
         self.url = url
         self.tlog_path = Path(tlog_path) if tlog_path is not None else None
@@ -239,10 +180,7 @@ class SimulatedVehicle:
         self.system_id = system_id
         self.component_id = component_id
 
-        self._lock = threading.RLock()
-        self._stored: dict[int, list[WireItem]] = {t: [] for t in MISSION_TYPES}
-        self._upload: _Upload | None = None
-        self._completed: _Completed | None = None
+        self.lock = threading.RLock()
         self._warned: set[str] = set()
         self._mav = M.MAVLink(None, srcSystem=system_id, srcComponent=component_id)
         self._parsers: dict[object, Any] = {}
@@ -262,13 +200,13 @@ class SimulatedVehicle:
             home=home,
             config=flight or FlightConfig(seed=self.faults.seed),
             gps_fix_s=gps_fix_s,
-            boot_utc_s=time.time(),
+            boot_utc_s=self.clock.time(),
             streams_on_request=ardupilot if streams_on_request is None else streams_on_request,
         )
         self.streams_on_request = ardupilot if streams_on_request is None else streams_on_request
         self.follow_mission_home = follow_mission_home
         self.frames = frames
-        self._uploaded_home: HomePosition | None = None
+        self.missions = VehicleMissions(self)
         self._transport: Transport | None = None
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()
@@ -280,15 +218,25 @@ class SimulatedVehicle:
         self._auto_start = False
         self._auto_start_waits = False
         self._said_waiting = False
+        self._party: object = None
+        self._caller_parties: list[object] = []
 
     # --- lifecycle ---------------------------------------------------------------------------
 
     def __enter__(self) -> SimulatedVehicle:
+        """Start; the thread that enters is a party of the vehicle's clock until the block
+        ends: on a :class:`~acquisition.clock.VirtualClock`, simulated time then stands still
+        while the block computes (its checks see the vehicle as it was when it last waited)."""
         self.start()
+        self._caller_parties.append(self.clock.join())
         return self
 
     def __exit__(self, *exc: object) -> None:
-        self.stop()
+        try:
+            self.stop()
+        finally:
+            if self._caller_parties:
+                self.clock.leave(self._caller_parties.pop())
 
     def start(self) -> None:
         """Open the socket and start the background thread."""
@@ -308,11 +256,17 @@ class SimulatedVehicle:
         )
         self._stop.clear()
         self._thread = threading.Thread(target=self._run, name="sfap-sim-vehicle", daemon=True)
-        self._thread.start()
+        self._party = self.clock.join(self._thread)  # a party from before it starts
+        try:
+            self._thread.start()
+        except BaseException:
+            self.clock.leave(self._party)
+            raise
 
     def stop(self) -> None:
         """Stop the thread and close the socket and the tlog."""
         self._stop.set()
+        self.clock.interrupt()
         if self._thread is not None:
             # The loop checks the stop flag between steps; a step of a heavily loaded simulation
             # can take long, so wait for it rather than pull the socket from under it.
@@ -349,7 +303,7 @@ class SimulatedVehicle:
     @property
     def sim_time_s(self) -> float:
         """Simulated seconds since boot."""
-        with self._lock:
+        with self.lock:
             return self.flight.time_s
 
     @property
@@ -360,47 +314,26 @@ class SimulatedVehicle:
     def receive_stats(self) -> FaultStats:
         return self._recv_pipe.stats
 
-    def stored_mission(self, mission_type: int = MISSION_TYPE_MISSION) -> list[MissionItem]:
+    def stored_mission(self, mission_type: int = MissionType.MISSION) -> list[MissionItem]:
         """A copy of the stored mission as a ground station would read it back
         (ArduPilot: home at index 0)."""
-        with self._lock:
-            return [wire_item_to_mission_item(w) for w in self._items_for_readback(mission_type)]
+        return self.missions.stored_mission(mission_type)
 
     def load_mission(self, items: Sequence[MissionItem], mission_type: int = 0) -> None:
         """Store ``items`` as if uploaded (ArduPilot: give the items without home)."""
-        with self._lock:
-            stored: list[WireItem] = []
-            if self.autopilot is Autopilot.ARDUPILOT and mission_type == MISSION_TYPE_MISSION:
-                stored.append(NO_HOME)
-            for seq, item in enumerate(items):
-                wire = wire_item_from_message(to_mission_item_int(item, seq, 1, 1, mission_type))
-                result = self._store(wire, mission_type)
-                if isinstance(result, int):
-                    raise MissionValidationError(
-                        f"the simulated {self.autopilot.value} vehicle refuses item {seq + 1} "
-                        f"({item.command_name}): MAV_MISSION_RESULT {result}; fix the item"
-                    )
-                stored.append(result)
-            self._stored[mission_type] = stored
-            self._mission_changed(mission_type)
+        self.missions.load_mission(items, mission_type)
 
     def corrupt_stored_item(self, seq: int, **changes: Any) -> None:
         """Change stored item ``seq`` (index as read back) behind the protocol's back, so a
         test can prove that a verification notices. ``changes`` are MissionItem fields."""
-        with self._lock:
-            stored = self._stored[MISSION_TYPE_MISSION]
-            if not 0 <= seq < len(stored):
-                raise IndexError(f"seq {seq} is outside the stored mission (0-{len(stored) - 1})")
-            item = dataclasses.replace(wire_item_to_mission_item(stored[seq]), **changes)
-            stored[seq] = wire_item_from_message(to_mission_item_int(item, seq, 1, 1, 0))
-            self._mission_changed(MISSION_TYPE_MISSION)
+        self.missions.corrupt_stored_item(seq, **changes)
 
     def auto_start(self, *, wait_for_telemetry: bool = False) -> None:
         """Arm and start the mission (AUTO) as soon as the GPS has a fix and a mission is
         stored, once; as a ground station would with ARM_DISARM and MISSION_START. With
         ``wait_for_telemetry`` it also waits until a ground station has asked for telemetry
         (a monitor does at once): a crew starts the flight once the flight is being watched."""
-        with self._lock:
+        with self.lock:
             self._auto_start = True
             self._auto_start_waits = wait_for_telemetry
 
@@ -408,14 +341,14 @@ class SimulatedVehicle:
         """Wait (wall seconds) until the vehicle has flown and landed; True if it has."""
         deadline = time.monotonic() + timeout_s
         while True:
-            with self._lock:
+            with self.lock:
                 if self.flight.has_landed_after_flight:
                     return True
             if self._error is not None:
                 raise LinkError(f"the simulated vehicle stopped: {self._error}") from self._error
             if time.monotonic() >= deadline:
                 return False
-            time.sleep(0.02)
+            self.clock.sleep(0.02)
 
     def wait_sim_time(self, sim_time_s: float, timeout_s: float = 30.0) -> bool:
         """Wait until the simulated clock has reached ``sim_time_s``."""
@@ -423,7 +356,7 @@ class SimulatedVehicle:
         while time.monotonic() < deadline:
             if self.sim_time_s >= sim_time_s:
                 return True
-            time.sleep(0.01)
+            self.clock.sleep(0.01)
         return False
 
     # --- the loop ----------------------------------------------------------------------------
@@ -434,36 +367,38 @@ class SimulatedVehicle:
         except BaseException as error:
             self._error = error
             log.exception("simulated vehicle stopped with an error")
+        finally:
+            self.clock.leave(self._party)
 
     def _loop(self) -> None:
         assert self._transport is not None
-        self._send_text(6, SIMULATOR_BANNER)
-        last = time.monotonic()
+        self.send_text(6, SIMULATOR_BANNER)
+        last = self.clock.monotonic()
         while not self._stop.is_set():
-            for peer, data in self._transport.poll(self._poll_timeout_s(time.monotonic())):
+            for peer, data in self._transport.poll(self._poll_timeout_s(self.clock.monotonic()), self.clock):
                 self._receive_bytes(peer, data)
             if self._transport.new_peers:
                 # Say it to every ground station that connects, not only at boot, and let
                 # it hear a heartbeat at once rather than up to a second later.
                 self._transport.new_peers = 0
-                with self._lock:
-                    self._send(self.flight.heartbeat_message())
-                self._send_text(6, SIMULATOR_BANNER)
-            now = time.monotonic()
+                with self.lock:
+                    self.send(self.flight.heartbeat_message())
+                self.send_text(6, SIMULATOR_BANNER)
+            now = self.clock.monotonic()
             dt_wall = now - last
             last = now
             for msg in self._recv_pipe.release(now):
                 self._handle(msg)
             # Answers go out as soon as they are made, before the flight steps: the clock is
             # read again because what was just sent is stamped later than ``now``.
-            self._flush(time.monotonic())
-            with self._lock:
+            self._flush(self.clock.monotonic())
+            with self.lock:
                 # --auto-start waits for a GPS fix and for a mission (preloaded or uploaded).
                 if self._auto_start and self.flight.gps_has_fix and self.flight.has_mission:
                     if self._auto_start_waits and not self.flight.telemetry_requested:
                         if not self._said_waiting:
                             self._said_waiting = True
-                            self._send_text(6, "Auto-start: waiting for a GCS to ask telemetry")
+                            self.send_text(6, "Auto-start: waiting for a GCS to ask telemetry")
                             log.info(
                                 "simulated vehicle: mission stored; waiting for a ground station to "
                                 "ask for telemetry (sfap monitor) before starting"
@@ -472,12 +407,12 @@ class SimulatedVehicle:
                         self._auto_start = False
                         self._start_by_itself()
                 for when_s, msg in self.flight.drain_events():
-                    self._send(msg, when_s)
+                    self.send(msg, when_s)
                 for when_s, msg in self.flight.step_timed(dt_wall * self.speedup):
-                    self._send(msg, when_s)
+                    self.send(msg, when_s)
                 self._write_frames()
-                self._protocol_timers(now)
-            self._flush(time.monotonic())
+                self.missions.timers(now)
+            self._flush(self.clock.monotonic())
 
     def _write_frames(self) -> None:
         card = self.frames
@@ -503,10 +438,10 @@ class SimulatedVehicle:
         if ok:
             ok, why = self.flight.start_mission()
         if ok:
-            self._send_text(6, "Mission started (sfap sim --auto-start)")
+            self.send_text(6, "Mission started (sfap sim --auto-start)")
             log.info("simulated vehicle: armed and started the mission by itself")
         else:
-            self._send_text(3, why)
+            self.send_text(3, why)
             log.warning("simulated vehicle: could not start the mission: %s", why)
 
     def _receive_bytes(self, peer: object, data: bytes) -> None:
@@ -520,13 +455,13 @@ class SimulatedVehicle:
         except Exception:
             log.debug("unparsable bytes from %s", peer, exc_info=True)
             return
-        now = time.monotonic()
+        now = self.clock.monotonic()
         for msg in msgs:
             if msg.get_type() == "BAD_DATA":
                 continue
             self._recv_pipe.offer(msg, now)
 
-    def _send(self, msg: Any, sim_time_s: float | None = None) -> None:
+    def send(self, msg: Any, sim_time_s: float | None = None) -> None:
         """Pack ``msg`` now (sequence number, tlog stamped at ``sim_time_s``, default now)
         and hand it to the faulty link."""
         data = bytes(msg.pack(self._mav))
@@ -539,7 +474,7 @@ class SimulatedVehicle:
             stamp_us = max(stamp_us, self._last_tlog_us)
             self._last_tlog_us = stamp_us
             self._tlog.write(struct.pack(">Q", stamp_us) + data)
-        self._send_pipe.offer(data, time.monotonic())
+        self._send_pipe.offer(data, self.clock.monotonic())
 
     def _flush(self, now: float) -> None:
         assert self._transport is not None
@@ -547,14 +482,14 @@ class SimulatedVehicle:
             self._transport.send(data)
         self._transport.flush()
 
-    def _send_text(self, severity: int, text: str) -> None:
-        with self._lock:
-            self._send(M.MAVLink_statustext_message(severity, text.encode()[:50]))
+    def send_text(self, severity: int, text: str) -> None:
+        with self.lock:
+            self.send(M.MAVLink_statustext_message(severity, text.encode()[:50]))
 
-    def _warn_once(self, key: str, text: str) -> None:
+    def warn_once(self, key: str, text: str) -> None:
         if key not in self._warned:
             self._warned.add(key)
-            self._send_text(4, text)
+            self.send_text(4, text)
 
     # --- message handling --------------------------------------------------------------------
 
@@ -565,390 +500,13 @@ class SimulatedVehicle:
     def _handle(self, msg: Any) -> None:
         name = msg.get_type()
         self.received_counts[name] = self.received_counts.get(name, 0) + 1
-        handler: Callable[[Any], None] | None = getattr(self, f"_on_{name.lower()}", None)
+        handler: Callable[[Any], None] | None = getattr(self.missions, f"on_{name.lower()}", None) or getattr(
+            self, f"_on_{name.lower()}", None
+        )
         if handler is None or not self._for_us(msg):
             return
-        with self._lock:
+        with self.lock:
             handler(msg)
-
-    def _ack(self, msg: Any, result: int, mission_type: int) -> None:
-        self._send(
-            M.MAVLink_mission_ack_message(msg.get_srcSystem(), msg.get_srcComponent(), result, mission_type)
-        )
-
-    def _request(self, upload: _Upload) -> None:
-        if self.autopilot is Autopilot.ARDUPILOT:
-            req = M.MAVLink_mission_request_message(
-                upload.sysid, upload.compid, upload.expected, upload.mission_type
-            )
-        else:
-            req = M.MAVLink_mission_request_int_message(
-                upload.sysid, upload.compid, upload.expected, upload.mission_type
-            )
-        upload.last_request_s = time.monotonic()
-        self._send(req)
-
-    def _items_for_readback(self, mission_type: int) -> list[WireItem]:
-        items = list(self._stored[mission_type])
-        if self.autopilot is Autopilot.ARDUPILOT and mission_type == MISSION_TYPE_MISSION:
-            if not items:
-                items = [NO_HOME]
-            items[0] = self._home_item()
-        return items
-
-    def _home_item(self) -> WireItem:
-        return home_wire_item(self.flight.home if self.flight.gps_has_fix else None)
-
-    def _store(self, item: WireItem, mission_type: int) -> WireItem | int:
-        return store_item(item, self.autopilot, self.vehicle_type, mission_type)
-
-    def _mission_changed(self, mission_type: int) -> None:
-        if mission_type == MISSION_TYPE_MISSION:
-            items = [wire_item_to_mission_item(w) for w in self._items_for_readback(0)]
-            self.flight.set_mission(items)
-
-    def _on_mission_count(self, msg: Any) -> None:
-        mission_type = int(getattr(msg, "mission_type", 0))
-        if mission_type not in MISSION_TYPES:
-            self._ack(msg, MAV_MISSION_UNSUPPORTED, mission_type)
-            return
-        up = self._upload
-        if up is not None:
-            if (up.sysid, up.compid) != (msg.get_srcSystem(), msg.get_srcComponent()):
-                self._ack(msg, MAV_MISSION_DENIED, mission_type)
-                return
-            self._upload = None  # the same ground station restarts its upload
-        ardupilot = self.autopilot is Autopilot.ARDUPILOT
-        if ardupilot and self.flight.time_s < self.boot_delay_s:
-            self._ack(msg, MAV_MISSION_NO_SPACE, mission_type)
-            self._send_text(4, "Only 0 items are supported")
-            return
-        if (self.faults.refuse == Refusal.NO_SPACE and msg.count > 0) or msg.count > self.max_items:
-            self._ack(msg, MAV_MISSION_NO_SPACE, mission_type)
-            if ardupilot:  # PX4 says nothing more than its NO_SPACE
-                self._send_text(4, f"Only {self.max_items} items are supported")
-            return
-        self._completed = None
-        if ardupilot:
-            # ArduPilot truncates at once and writes items as they arrive.
-            stored = self._stored[mission_type]
-            keep = max(msg.count, 1) if mission_type == MISSION_TYPE_MISSION else msg.count
-            del stored[keep:]
-            self._mission_changed(mission_type)
-        if msg.count == 0:
-            if not ardupilot:
-                self._stored[mission_type] = []
-                self._mission_changed(mission_type)
-            self._ack(msg, MAV_MISSION_ACCEPTED, mission_type)
-            return
-        now = time.monotonic()
-        self._upload = _Upload(
-            mission_type=mission_type,
-            count=int(msg.count),
-            sysid=msg.get_srcSystem(),
-            compid=msg.get_srcComponent(),
-            last_receive_s=now,
-        )
-        self._request(self._upload)
-
-    def _on_mission_item(self, msg: Any) -> None:
-        if self.autopilot is Autopilot.ARDUPILOT and self._upload is not None:
-            self._warn_once("item", "got MISSION_ITEM; GCS should send MISSION_ITEM_INT")
-        self._on_mission_item_int(msg)
-
-    def _on_mission_item_int(self, msg: Any) -> None:
-        mission_type = int(getattr(msg, "mission_type", 0))
-        up = self._upload
-        ardupilot = self.autopilot is Autopilot.ARDUPILOT
-        if up is None or up.mission_type != mission_type:
-            done = self._completed
-            if (
-                not ardupilot
-                and done is not None
-                and done.mission_type == mission_type
-                and msg.seq == done.count - 1
-            ):
-                # PX4: the last item again means our ACK was lost; send it again.
-                self._ack(msg, done.result, mission_type)
-            return
-        if msg.seq != up.expected:
-            if ardupilot:
-                self._ack(msg, MAV_MISSION_INVALID_SEQUENCE, mission_type)
-            return
-        if (msg.get_srcSystem(), msg.get_srcComponent()) != (up.sysid, up.compid):
-            self._ack(msg, MAV_MISSION_DENIED, mission_type)
-            return
-        wire = wire_item_from_message(msg)
-        if self.faults.refuse == Refusal.INVALID and msg.seq == up.count // 2:
-            result: WireItem | int = MAV_MISSION_INVALID
-        elif ardupilot and mission_type == MISSION_TYPE_MISSION and msg.seq == 0:
-            result = NO_HOME  # home: ArduPilot keeps its own
-            if wire.frame in (0, 5) and (wire.x != 0 or wire.y != 0):  # MAV_FRAME_GLOBAL(_INT)
-                self._uploaded_home = HomePosition(
-                    lat_deg=wire.x / 1e7, lon_deg=wire.y / 1e7, alt_amsl_m=float(wire.z)
-                )
-        else:
-            result = self._store(wire, mission_type)
-        if isinstance(result, int):
-            self._upload = None
-            self._finish(msg, up, result)
-            return
-        up.last_receive_s = time.monotonic()
-        if ardupilot:
-            stored = self._stored[mission_type]
-            if msg.seq < len(stored):
-                stored[msg.seq] = result
-            else:
-                stored.append(result)
-            # the flight reads the mission when the upload ends (_finish), not per item
-        else:
-            up.items.append(result)
-        up.expected += 1
-        if up.expected >= up.count:
-            self._upload = None
-            if not ardupilot:
-                self._stored[mission_type] = list(up.items)
-            self._finish(msg, up, MAV_MISSION_ACCEPTED)
-            return
-        self._request(up)
-
-    def _follow_home(self, up: _Upload) -> None:
-        """``follow_mission_home``: move to the uploaded mission's home before the first flight."""
-        if not self.follow_mission_home or up.mission_type != MISSION_TYPE_MISSION:
-            return
-        flight = self.flight
-        if flight.has_flown or flight.armed:
-            return
-        home = self._uploaded_home
-        if home is None and self.autopilot is Autopilot.PX4:
-            for wire in up.items:
-                if wire.frame in (0, 3, 5, 6, 10, 11) and (wire.x != 0 or wire.y != 0):
-                    home = HomePosition(
-                        lat_deg=wire.x / 1e7, lon_deg=wire.y / 1e7, alt_amsl_m=flight.home.alt_amsl_m
-                    )
-                    break
-        self._uploaded_home = None
-        if home is None or (home.lat_deg, home.lon_deg) == (flight.home.lat_deg, flight.home.lon_deg):
-            return
-        flight.move_home(home)
-        self.home = home
-        self._send_text(6, "sim: moved to the mission's home")
-        log.info(
-            "simulated vehicle: moved to the uploaded mission's home %.7f, %.7f, %.1f m AMSL",
-            home.lat_deg,
-            home.lon_deg,
-            home.alt_amsl_m,
-        )
-
-    def _finish(self, msg: Any, up: _Upload, result: int) -> None:
-        if result == MAV_MISSION_ACCEPTED:
-            self._follow_home(up)
-        self._completed = _Completed(up.mission_type, up.count, up.sysid, up.compid, result, time.monotonic())
-        self._mission_changed(up.mission_type)
-        self._ack(msg, result, up.mission_type)
-        log.info(
-            "simulated vehicle: upload of %d items (type %d) ended with MAV_MISSION_RESULT %d",
-            up.count,
-            up.mission_type,
-            result,
-        )
-
-    def _protocol_timers(self, now: float) -> None:
-        up = self._upload
-        if up is None:
-            return
-        if now - up.last_receive_s > self.upload_timeout_s:
-            self._upload = None
-            self._completed = None
-            self._mission_changed(up.mission_type)
-            self._send(
-                M.MAVLink_mission_ack_message(
-                    up.sysid, up.compid, MAV_MISSION_OPERATION_CANCELLED, up.mission_type
-                )
-            )
-            log.info("simulated vehicle: upload timed out at item %d of %d", up.expected, up.count)
-            return
-        if now - up.last_request_s > self.request_timeout_s:
-            self._request(up)
-
-    def _on_mission_request_list(self, msg: Any) -> None:
-        mission_type = int(getattr(msg, "mission_type", 0))
-        if mission_type not in MISSION_TYPES:
-            self._ack(msg, MAV_MISSION_UNSUPPORTED, mission_type)
-            return
-        if self._upload is not None:
-            self._ack(msg, MAV_MISSION_DENIED, mission_type)
-            return
-        count = len(self._items_for_readback(mission_type))
-        self._send(
-            M.MAVLink_mission_count_message(msg.get_srcSystem(), msg.get_srcComponent(), count, mission_type)
-        )
-
-    def _answer_request(self, msg: Any, as_int: bool) -> None:
-        mission_type = int(getattr(msg, "mission_type", 0))
-        if mission_type not in MISSION_TYPES:
-            self._ack(msg, MAV_MISSION_UNSUPPORTED, mission_type)
-            return
-        if self._upload is not None:
-            if self.autopilot is Autopilot.ARDUPILOT or not as_int:
-                self._ack(msg, MAV_MISSION_DENIED, mission_type)
-            # PX4 ignores requests during its own upload
-            return
-        items = self._items_for_readback(mission_type)
-        if not 0 <= msg.seq < len(items):
-            if as_int:
-                self._send(
-                    M.MAVLink_mission_count_message(
-                        msg.get_srcSystem(), msg.get_srcComponent(), len(items), mission_type
-                    )
-                )
-            self._ack(msg, MAV_MISSION_INVALID_SEQUENCE, mission_type)
-            return
-        build = item_int_message if as_int else item_float_message
-        if not as_int and self.autopilot is Autopilot.ARDUPILOT:
-            self._warn_once("request", "got MISSION_REQUEST; use MISSION_REQUEST_INT!")
-        self._send(
-            build(
-                items[msg.seq],
-                msg.seq,
-                msg.get_srcSystem(),
-                msg.get_srcComponent(),
-                mission_type,
-            )
-        )
-
-    def _on_mission_request_int(self, msg: Any) -> None:
-        self._answer_request(msg, as_int=True)
-
-    def _on_mission_request(self, msg: Any) -> None:
-        self._answer_request(msg, as_int=False)
-
-    def _on_mission_ack(self, msg: Any) -> None:
-        # The end of a download (nothing to free here), or a ground station cancelling its
-        # upload with an error result: stop requesting items.
-        up = self._upload
-        source = (msg.get_srcSystem(), msg.get_srcComponent())
-        mission_type = int(getattr(msg, "mission_type", 0))
-        ours = up is not None and (up.sysid, up.compid) == source
-        if ours and up is not None and up.mission_type == mission_type and msg.type != 0:
-            self._upload = None
-            self._mission_changed(mission_type)
-            log.info("simulated vehicle: the ground station cancelled its upload")
-
-    def _on_mission_clear_all(self, msg: Any) -> None:
-        mission_type = int(getattr(msg, "mission_type", 0))
-        if mission_type not in MISSION_TYPES:
-            self._ack(msg, MAV_MISSION_UNSUPPORTED, mission_type)
-            return
-        up = self._upload
-        if up is not None and (up.sysid, up.compid) != (
-            msg.get_srcSystem(),
-            msg.get_srcComponent(),
-        ):
-            self._ack(msg, MAV_MISSION_ERROR, mission_type)
-            return
-        self._upload = None
-        self._stored[mission_type] = []
-        self._mission_changed(mission_type)
-        self._ack(msg, MAV_MISSION_ACCEPTED, mission_type)
-
-    def _on_mission_set_current(self, msg: Any) -> None:
-        self.flight.set_current(int(msg.seq))
-
-    # --- commands ----------------------------------------------------------------------------
-
-    def _command_ack(self, msg: Any, command: int, result: int) -> None:
-        self._send(
-            M.MAVLink_command_ack_message(command, result, 0, 0, msg.get_srcSystem(), msg.get_srcComponent())
-        )
-
-    def _on_command_long(self, msg: Any) -> None:
-        command = int(msg.command)
-        params = (
-            msg.param1,
-            msg.param2,
-            msg.param3,
-            msg.param4,
-            msg.param5,
-            msg.param6,
-            msg.param7,
-        )
-        result = self._run_command(command, params)
-        self._command_ack(msg, command, result)
-
-    def _on_command_int(self, msg: Any) -> None:
-        command = int(msg.command)
-        params = (msg.param1, msg.param2, msg.param3, msg.param4, msg.x, msg.y, msg.z)
-        result = self._run_command(command, params)
-        self._command_ack(msg, command, result)
-
-    def _run_command(self, command: int, params: Sequence[float]) -> int:
-        accepted, denied = M.MAV_RESULT_ACCEPTED, M.MAV_RESULT_DENIED
-        failed, unsupported = M.MAV_RESULT_FAILED, M.MAV_RESULT_UNSUPPORTED
-        flight = self.flight
-        if command == 400:  # MAV_CMD_COMPONENT_ARM_DISARM
-            if params[0] >= 0.5:
-                ok, why = flight.arm()
-            else:
-                ok, why = flight.disarm(force=abs(params[1] - 21196) < 0.5)
-            if not ok:
-                self._send_text(3, why)
-            return accepted if ok else failed
-        if command == 176:  # MAV_CMD_DO_SET_MODE
-            ok = flight.set_mode(int(params[0]), int(params[1]), int(params[2]))
-            return accepted if ok else denied
-        if command == 300:  # MAV_CMD_MISSION_START
-            ok, why = flight.start_mission()
-            if not ok:
-                self._send_text(3, why)
-            return accepted if ok else failed
-        if command == 224:  # MAV_CMD_DO_SET_MISSION_CURRENT
-            seq = int(params[0])
-            if not 0 <= seq < len(flight.mission.items):
-                return denied
-            flight.set_current(seq)
-            return accepted
-        if command == 20:  # MAV_CMD_NAV_RETURN_TO_LAUNCH
-            return accepted if flight.return_to_launch() else failed
-        if command in (512, 520):  # REQUEST_MESSAGE / REQUEST_AUTOPILOT_CAPABILITIES
-            if command == 520 or int(params[0]) == 148:
-                self._send(self._autopilot_version())
-                return accepted
-            if int(params[0]) == 242:  # HOME_POSITION
-                home = flight.home_position_message()
-                if home is None:
-                    return failed
-                self._send(home)
-                return accepted
-            return unsupported
-        if command == 511:  # MAV_CMD_SET_MESSAGE_INTERVAL (param1 message id, param2 interval us)
-            ok = flight.set_message_interval(int(params[0]), float(params[1]))
-            return accepted if ok else unsupported
-        if command == 2504:  # REQUEST_CAMERA_INFORMATION
-            return accepted
-        return unsupported
-
-    def _autopilot_version(self) -> Any:
-        # MAV_PROTOCOL_CAPABILITY: MISSION_FLOAT 1, MISSION_INT 4, COMMAND_INT 8,
-        # MAVLINK2 8192, MISSION_FENCE 16384, MISSION_RALLY 32768
-        capabilities = 1 | 4 | 8 | 8192 | 16384 | 32768
-        version = (
-            (4 << 24) | (5 << 16) | (7 << 8)
-            if self.autopilot is Autopilot.ARDUPILOT
-            else ((1 << 24) | (15 << 16))
-        )
-        return M.MAVLink_autopilot_version_message(
-            capabilities, version, 0, 0, 0, [0] * 8, [0] * 8, [0] * 8, 0, 0, 0xF00D
-        )
-
-    def _on_set_mode(self, msg: Any) -> None:
-        self.flight.set_mode(int(msg.base_mode), *self.flight.split_custom_mode(msg.custom_mode))
-
-    def _on_request_data_stream(self, msg: Any) -> None:
-        # No answer, as ArduPilot: the streams start (or stop), that is all.
-        self.flight.request_data_stream(
-            int(msg.req_stream_id), float(msg.req_message_rate), bool(msg.start_stop)
-        )
 
 
 def serve(

@@ -18,14 +18,22 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from planner.mission import Autopilot, HomePosition, MavCmd, MissionItem, VehicleType
 
-from ..mavlink_items import from_mission_item
+from ..mavlink_items import (
+    ARDUPILOT_LOCATION_COMMANDS,
+    MissionResult,
+    MissionType,
+    ardupilot_nan_allowed,
+    deg_to_e7,
+    e7_to_deg,
+    from_mission_item,
+    int_frame,
+    is_global_frame,
+    plain_wire_frame,
+)
 
 M = mavlink2  # the message set (ardupilotmega includes common)
 
-MISSION_TYPE_MISSION = 0
-MISSION_TYPE_FENCE = 1
-MISSION_TYPE_RALLY = 2
-MISSION_TYPES = (MISSION_TYPE_MISSION, MISSION_TYPE_FENCE, MISSION_TYPE_RALLY)
+MISSION_TYPES = tuple(int(t) for t in MissionType)
 
 
 @dataclass(frozen=True)
@@ -45,27 +53,6 @@ class WireItem:
 
 
 _F32 = np.float32
-_GLOBAL_FRAMES = frozenset({0, 3, 5, 6, 10, 11})
-_PLAIN = {5: 0, 6: 3, 11: 10}
-_INT_OF = {0: 5, 3: 6, 10: 11}
-
-# MAV_MISSION_RESULT values, from pymavlink's message definitions
-MAV_MISSION_ACCEPTED = M.MAV_MISSION_ACCEPTED
-MAV_MISSION_ERROR = M.MAV_MISSION_ERROR
-MAV_MISSION_UNSUPPORTED_FRAME = M.MAV_MISSION_UNSUPPORTED_FRAME
-MAV_MISSION_UNSUPPORTED = M.MAV_MISSION_UNSUPPORTED
-MAV_MISSION_NO_SPACE = M.MAV_MISSION_NO_SPACE
-MAV_MISSION_INVALID = M.MAV_MISSION_INVALID
-MAV_MISSION_INVALID_PARAM1 = M.MAV_MISSION_INVALID_PARAM1
-MAV_MISSION_INVALID_PARAM5_X = M.MAV_MISSION_INVALID_PARAM5_X
-MAV_MISSION_INVALID_PARAM6_Y = M.MAV_MISSION_INVALID_PARAM6_Y
-MAV_MISSION_INVALID_PARAM7 = M.MAV_MISSION_INVALID_PARAM7
-MAV_MISSION_INVALID_SEQUENCE = M.MAV_MISSION_INVALID_SEQUENCE
-MAV_MISSION_DENIED = M.MAV_MISSION_DENIED
-MAV_MISSION_OPERATION_CANCELLED = M.MAV_MISSION_OPERATION_CANCELLED
-
-#: Commands AP_Mission stores with a location (copy_location), which read back in a global frame.
-_AP_LOCATION_CMDS = frozenset({16, 17, 18, 19, 21, 22, 30, 31, 82, 84, 85, 94, 179, 189, 195, 201})
 
 
 def _f32(value: float) -> float:
@@ -86,15 +73,6 @@ def _c_int(value: float, bits: int) -> int:
     return int(min(max(math.trunc(value), -limit), limit - 1))
 
 
-def _ap_nan_allowed(command: int) -> frozenset[int]:
-    """Params (1-4) that AP_Mission::sanity_check_params lets be NaN."""
-    if command in (16, 21, 22, 84):
-        return frozenset({4})
-    if command == 85:
-        return frozenset({3, 4})
-    return frozenset()
-
-
 def ardupilot_store(item: WireItem, vehicle_type: VehicleType) -> WireItem | int:
     """What ArduPilot (AP_Mission, 4.5) stores for ``item``, as it will read it back.
 
@@ -108,12 +86,12 @@ def ardupilot_store(item: WireItem, vehicle_type: VehicleType) -> WireItem | int
     integers clamped to 0-255. Commands this table does not know keep params 1-4 as float32.
     """
     params = (item.param1, item.param2, item.param3, item.param4)
-    allowed = _ap_nan_allowed(item.command)
+    allowed = ardupilot_nan_allowed(item.command)
     for n, value in enumerate(params, start=1):
         if math.isinf(value) or (math.isnan(value) and n not in allowed):
-            return MAV_MISSION_INVALID_PARAM1 + n - 1
+            return MissionResult.INVALID_PARAM1 + n - 1
     if item.command == 0:
-        return MAV_MISSION_INVALID
+        return MissionResult.INVALID
     p1, p2, p3, p4 = (0.0 if math.isnan(v) else v for v in params)
     cmd = item.command
     copter = vehicle_type is not VehicleType.FIXED_WING
@@ -121,16 +99,16 @@ def ardupilot_store(item: WireItem, vehicle_type: VehicleType) -> WireItem | int
     x = y = 0
     z = 0.0
     frame = 0
-    if cmd in _AP_LOCATION_CMDS:
-        plain = _PLAIN.get(item.frame, item.frame)
+    if cmd in ARDUPILOT_LOCATION_COMMANDS:
+        plain = plain_wire_frame(item.frame)
         if plain not in (0, 2, 3, 10):
-            return MAV_MISSION_UNSUPPORTED_FRAME
+            return MissionResult.UNSUPPORTED_FRAME
         if not (-900_000_000 <= item.x <= 900_000_000):
-            return MAV_MISSION_INVALID_PARAM5_X
+            return MissionResult.INVALID_PARAM5_X
         if not (-1_800_000_000 <= item.y <= 1_800_000_000):
-            return MAV_MISSION_INVALID_PARAM6_Y
+            return MissionResult.INVALID_PARAM6_Y
         if not math.isfinite(item.z) or abs(item.z) >= 83000:
-            return MAV_MISSION_INVALID_PARAM7
+            return MissionResult.INVALID_PARAM7
         frame = 0 if plain == 2 else plain
         x, y = item.x, item.y
         alt_cm = int(_F32(item.z) * _F32(100.0))  # int32 cast truncates toward zero
@@ -143,7 +121,7 @@ def ardupilot_store(item: WireItem, vehicle_type: VehicleType) -> WireItem | int
             out3 = float(min(_c_uint(p3, 16), 255))
     elif cmd == MavCmd.NAV_SPLINE_WAYPOINT:
         if not copter:
-            return MAV_MISSION_UNSUPPORTED
+            return MissionResult.UNSUPPORTED
         out1 = float(_c_uint(p1, 16))
     elif cmd in (MavCmd.NAV_TAKEOFF, MavCmd.NAV_LAND):
         out1 = float(_c_uint(p1, 16))
@@ -180,16 +158,16 @@ def ardupilot_store(item: WireItem, vehicle_type: VehicleType) -> WireItem | int
         out1, out2, out3, out4 = _f32(p1), _f32(p2), _f32(p3), _f32(p4)
         # shooting command and command id live in x and y (uint8 each)
         x, y = _c_uint(float(item.x), 8), _c_uint(float(item.y), 8)
-    elif cmd in _AP_LOCATION_CMDS:
+    elif cmd in ARDUPILOT_LOCATION_COMMANDS:
         out1 = float(_c_uint(p1, 16))
     else:
         out1, out2, out3, out4 = _f32(p1), _f32(p2), _f32(p3), _f32(p4)
         x, y, z = item.x, item.y, _f32(item.z)
-        frame = _PLAIN.get(item.frame, item.frame)
+        frame = plain_wire_frame(item.frame)
     return WireItem(frame, cmd, out1, out2, out3, out4, x, y, z, 1 if item.autocontinue else 0)
 
 
-def px4_store(item: WireItem, mission_type: int = MISSION_TYPE_MISSION) -> WireItem | int:
+def px4_store(item: WireItem, mission_type: int = MissionType.MISSION) -> WireItem | int:
     """What PX4 keeps: params as float32, positions degE7; in a mission, the frame in its
     _INT form for positional items and MAV_FRAME_MISSION (2) for the other commands it knows;
     fence and rally items keep their frame."""
@@ -198,13 +176,13 @@ def px4_store(item: WireItem, mission_type: int = MISSION_TYPE_MISSION) -> WireI
     except ValueError:
         command = None
     frame = item.frame
-    if mission_type != MISSION_TYPE_MISSION or command is None:
+    if mission_type != MissionType.MISSION or command is None:
         pass
     elif command.is_nav:
-        plain = _PLAIN.get(item.frame, item.frame)
+        plain = plain_wire_frame(item.frame)
         if plain not in (0, 3, 10):
-            return MAV_MISSION_UNSUPPORTED_FRAME
-        frame = _INT_OF[plain]
+            return MissionResult.UNSUPPORTED_FRAME
+        frame = int(int_frame(plain))
     else:
         frame = 2
     return WireItem(
@@ -224,8 +202,8 @@ def px4_store(item: WireItem, mission_type: int = MISSION_TYPE_MISSION) -> WireI
 def wire_item_from_message(msg: Any) -> WireItem:
     """MISSION_ITEM_INT (or legacy MISSION_ITEM: float degrees) -> :class:`WireItem`."""
     if msg.get_type() == "MISSION_ITEM":
-        if msg.frame in _GLOBAL_FRAMES:
-            x, y = round(msg.x * 1e7), round(msg.y * 1e7)
+        if is_global_frame(msg.frame):
+            x, y = deg_to_e7(msg.x), deg_to_e7(msg.y)
         else:
             x, y = math.trunc(msg.x), math.trunc(msg.y)
     else:
@@ -270,8 +248,8 @@ def item_int_message(item: WireItem, seq: int, sysid: int, compid: int, mission_
 
 
 def item_float_message(item: WireItem, seq: int, sysid: int, compid: int, mission_type: int) -> Any:
-    if item.frame in _GLOBAL_FRAMES:
-        x, y = _f32(item.x * 1e-7), _f32(item.y * 1e-7)
+    if is_global_frame(item.frame):
+        x, y = _f32(e7_to_deg(item.x)), _f32(e7_to_deg(item.y))
     else:
         x, y = float(item.x), float(item.y)
     return M.MAVLink_mission_item_message(
@@ -310,8 +288,8 @@ def home_wire_item(home: HomePosition | None) -> WireItem:
         0.0,
         0.0,
         0.0,
-        round(home.lat_deg * 1e7),
-        round(home.lon_deg * 1e7),
+        deg_to_e7(home.lat_deg),
+        deg_to_e7(home.lon_deg),
         float(_F32(alt_cm) / _F32(100.0)),
     )
 
@@ -322,7 +300,7 @@ def store_item(
     """What ``autopilot`` keeps of ``item`` uploaded as ``mission_type``, or the
     MAV_MISSION_RESULT it refuses the item with. Fence and rally items: PX4's rule; ArduPilot
     keeps them as float32 without checking them."""
-    if mission_type != MISSION_TYPE_MISSION:
+    if mission_type != MissionType.MISSION:
         if autopilot is Autopilot.PX4:
             return px4_store(item, mission_type)
         return dataclasses.replace(

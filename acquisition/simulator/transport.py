@@ -14,8 +14,9 @@ import socket
 from dataclasses import dataclass
 from urllib.parse import urlsplit
 
+from ..clock import WALL_CLOCK, Clock, WallClock
 from ..errors import LinkError
-from ..link import LinkInputError
+from ..link_port import LinkInputError
 
 log = logging.getLogger(__name__)
 
@@ -105,12 +106,17 @@ class Transport:
             socks.append(self._udp)
         return socks
 
-    def poll(self, timeout_s: float) -> list[tuple[object, bytes]]:
-        """Wait up to ``timeout_s`` and return (peer key, bytes) received."""
+    def poll(self, timeout_s: float, clock: Clock = WALL_CLOCK) -> list[tuple[object, bytes]]:
+        """Wait up to ``timeout_s`` (on ``clock``) and return (peer key, bytes) received."""
         socks = self.sockets()
         out: list[tuple[object, bytes]] = []
         try:
-            readable, _, _ = select.select(socks, [], [], timeout_s)
+            if isinstance(clock, WallClock):
+                readable, _, _ = select.select(socks, [], [], timeout_s)
+            elif clock.wait_readable([sock.fileno() for sock in socks], timeout_s):
+                readable, _, _ = select.select(socks, [], [], 0)
+            else:
+                readable = []
         except (OSError, ValueError):
             return out
         for sock in readable:

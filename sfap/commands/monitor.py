@@ -8,9 +8,9 @@ from pathlib import Path
 
 import click
 
-from acquisition.link import load_signing_key
 from acquisition.monitor import MonitorResult, StopReason, monitor
 from acquisition.monitor_state import MonitorState
+from acquisition.signing import load_signing_key
 
 from ..common import connect_options, dumps_json, json_option, overwrite_option
 

@@ -9,10 +9,10 @@ from typing import Any, TypeVar
 import click
 
 from acquisition.simulator.camera import FrameCard
+from acquisition.simulator.faults import FaultConfig
 from acquisition.simulator.server import (
     DEFAULT_HOME,
     SIMULATOR_BANNER,
-    FaultConfig,
     SimulatedVehicle,
     serve,
 )

@@ -13,15 +13,11 @@ from typing import Any, TypeVar
 import click
 
 from acquisition.errors import LinkError
-from acquisition.link import Link, load_signing_key
-from acquisition.transfer import (
-    DEFAULT_RETRIES,
-    DEFAULT_TIMEOUT_S,
-    MissionInputError,
-    MissionVerificationError,
-    TransferPhase,
-    upload_mission,
-)
+from acquisition.link import Link
+from acquisition.mission_protocol import DEFAULT_RETRIES, DEFAULT_TIMEOUT_S, TransferPhase
+from acquisition.signing import load_signing_key
+from acquisition.transfer import upload_mission
+from acquisition.transfer_outcome import MissionInputError, MissionVerificationError
 from planner.errors import MissionFileError, MissionValidationError
 from planner.mission import validate_mission
 
@@ -125,7 +121,7 @@ def progress_bars(enabled: bool = True) -> Iterator[ProgressBars]:
 @click.argument("mission_file", type=click.Path(dir_okay=False, path_type=Path))
 @link_options
 @click.option(
-    "--max-alt-m",
+    "--max-alt-rel-home-m",
     type=float,
     default=None,
     help="The vehicle's altitude limit in metres above home; higher items are refused before "
@@ -153,7 +149,7 @@ def command(
     timeout_s: float,
     retries: int,
     heartbeat_timeout_s: float,
-    max_alt_m: float | None,
+    max_alt_rel_home_m: float | None,
     max_home_distance_m: float,
     allow_other_autopilot: bool,
     as_json: bool,
@@ -176,7 +172,7 @@ def command(
     except MissionFileError as error:
         raise MissionFileError(f"{error}. {nothing_sent}") from error
     try:
-        validate_mission(mission, max_alt_rel_home_m=max_alt_m)
+        validate_mission(mission, max_alt_rel_home_m=max_alt_rel_home_m)
     except MissionValidationError as error:
         raise MissionInputError(f"{error}\n{nothing_sent}") from error
     with (
@@ -197,7 +193,7 @@ def command(
                 progress=bars,
                 timeout_s=timeout_s,
                 retries=retries,
-                max_alt_rel_home_m=max_alt_m,
+                max_alt_rel_home_m=max_alt_rel_home_m,
                 allow_other_autopilot=allow_other_autopilot,
             )
         except MissionVerificationError as error:

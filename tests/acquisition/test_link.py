@@ -19,8 +19,11 @@ import pytest
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
+from acquisition.clock import VirtualClock
 from acquisition.errors import LinkError
-from acquisition.link import URL_EXAMPLES, Link, LinkUrl, load_signing_key
+from acquisition.link import Link
+from acquisition.link_port import URL_EXAMPLES, LinkUrl
+from acquisition.signing import load_signing_key
 from acquisition.simulator.server import SimulatedVehicle
 from planner.mission import Autopilot, VehicleType
 
@@ -205,32 +208,38 @@ def test_identifies_the_vehicle(autopilot: Autopilot, vehicle_type: VehicleType)
 
 def test_udp_link_to_the_vehicle() -> None:
     # the vehicle listens (udpin); we send first (udpout), so it learns where to answer
-    with SimulatedVehicle(url="udpin://127.0.0.1:0", autopilot=Autopilot.PX4) as vehicle:
+    clock = VirtualClock()
+    with SimulatedVehicle(url="udpin://127.0.0.1:0", autopilot=Autopilot.PX4, clock=clock) as vehicle:
         url = vehicle.url_for_client
         assert url.startswith("udpout://")
-        with Link.open(url, heartbeat_timeout_s=5.0) as link:
+        with Link.open(url, heartbeat_timeout_s=5.0, clock=clock) as link:
             assert link.autopilot is Autopilot.PX4
             assert link.recv({"HEARTBEAT"}, timeout_s=3.0) is not None
 
 
 def test_udpin_link_hears_a_vehicle_that_sends_to_us() -> None:
     port = free_port(socket.SOCK_DGRAM)
+    clock = VirtualClock()
     with (
-        SimulatedVehicle(url=f"udpout://127.0.0.1:{port}", autopilot=Autopilot.ARDUPILOT),
-        Link.open(f"udpin://127.0.0.1:{port}", heartbeat_timeout_s=5.0) as link,
+        SimulatedVehicle(url=f"udpout://127.0.0.1:{port}", autopilot=Autopilot.ARDUPILOT, clock=clock),
+        Link.open(f"udpin://127.0.0.1:{port}", heartbeat_timeout_s=5.0, clock=clock) as link,
     ):
         assert link.autopilot is Autopilot.ARDUPILOT
         assert link.target_system == 1
 
 
 def test_sends_gcs_heartbeats_while_open() -> None:
-    with SimulatedVehicle(autopilot=Autopilot.PX4) as vehicle:
-        with Link.open(vehicle.url_for_client, heartbeat_timeout_s=5.0):
-            time.sleep(1.3)
+    # on simulated time: the link's heartbeat thread and the vehicle wait on the same clock
+    clock = VirtualClock()
+    with SimulatedVehicle(autopilot=Autopilot.PX4, clock=clock) as vehicle:
+        with Link.open(vehicle.url_for_client, heartbeat_timeout_s=5.0, clock=clock):
+            opened = clock.monotonic()
+            clock.sleep(2.5)
             during = vehicle.received_counts.get("HEARTBEAT", 0)
-        time.sleep(1.2)
+        assert clock.monotonic() - opened == 2.5
+        clock.sleep(3.0)
         after = vehicle.received_counts.get("HEARTBEAT", 0)
-    assert during >= 2  # one at open, one a second later
+    assert during == 3  # one at open, then one a second, at 1 s and 2 s
     assert after == during  # the thread stopped with the link
 
 

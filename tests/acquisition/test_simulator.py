@@ -25,17 +25,14 @@ import pytest
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
+from acquisition.clock import WALL_CLOCK, Clock, VirtualClock
 from acquisition.errors import LinkError
 from acquisition.mavlink_items import from_mission_item, to_mission_item_int
-from acquisition.simulator.faults import FaultyPipe
+from acquisition.simulator.faults import FaultConfig, FaultyPipe
 from acquisition.simulator.flight import FlightConfig, FlightSimulator
-from acquisition.simulator.server import (
-    FaultConfig,
-    SimulatedVehicle,
-    WireItem,
-    ardupilot_store,
-    parse_listen_url,
-)
+from acquisition.simulator.server import SimulatedVehicle
+from acquisition.simulator.storage import WireItem, ardupilot_store, wire_item_from_message
+from acquisition.simulator.transport import parse_listen_url
 from planner.errors import InputError
 from planner.geo import geodesic_distance_m
 from planner.mission import Autopilot, HomePosition, MavFrame, MissionItem, VehicleType
@@ -54,9 +51,11 @@ DENIED, CANCELLED = _ML.MAV_MISSION_DENIED, _ML.MAV_MISSION_OPERATION_CANCELLED
 
 
 class GroundStation:
-    """A minimal ground station: the mission protocol with spec-style timeouts and retries."""
+    """A minimal ground station: the mission protocol with spec-style timeouts and retries,
+    on a plain pymavlink connection; it waits on ``clock`` (the vehicle's)."""
 
-    def __init__(self, url: str, timeout_s: float = 0.4) -> None:
+    def __init__(self, url: str, timeout_s: float = 0.4, clock: Clock = WALL_CLOCK) -> None:
+        self.clock = clock
         scheme, rest = url.split("://", 1)
         self.conn: Any = mavutil.mavlink_connection(
             f"{scheme}:{rest}", source_system=255, source_component=190, autoreconnect=False
@@ -71,17 +70,20 @@ class GroundStation:
     def close(self) -> None:
         self.conn.close()
 
-    def recv(self, types: list[str], timeout_s: float | None = None) -> Any:
-        """The next message of one of ``types``; STATUSTEXTs met on the way are kept."""
-        deadline = time.monotonic() + (self.timeout_s if timeout_s is None else timeout_s)
+    def recv(self, types: list[str] | None, timeout_s: float | None = None) -> Any:
+        """The next message of one of ``types`` (any: None); STATUSTEXTs met on the way are kept."""
+        deadline = self.clock.monotonic() + (self.timeout_s if timeout_s is None else timeout_s)
         while True:
-            left = deadline - time.monotonic()
+            msg = self.conn.recv_match(type=None if types is None else [*types, "STATUSTEXT"], blocking=False)
+            if msg is not None:
+                if types is None or msg.get_type() in types:
+                    return msg
+                self.texts.append(msg.text)
+                continue
+            left = deadline - self.clock.monotonic()
             if left <= 0:
                 return None
-            msg = self.conn.recv_match(type=[*types, "STATUSTEXT"], blocking=True, timeout=left)
-            if msg is None or msg.get_type() in types:
-                return msg
-            self.texts.append(msg.text)
+            self.clock.wait_readable([self.conn.fd], left)
 
     def drain(self) -> None:
         while self.conn.recv_match(blocking=False) is not None:
@@ -139,9 +141,9 @@ class GroundStation:
                     self.conn.mav.mission_request_int_send(1, 1, seq, mission_type)
                 else:
                     self.conn.mav.mission_request_send(1, 1, seq, mission_type)
-                deadline = time.monotonic() + self.timeout_s
-                while time.monotonic() < deadline:
-                    msg = self.recv([wanted], timeout_s=deadline - time.monotonic())
+                deadline = self.clock.monotonic() + self.timeout_s
+                while self.clock.monotonic() < deadline:
+                    msg = self.recv([wanted], timeout_s=deadline - self.clock.monotonic())
                     if msg is not None and msg.seq == seq and msg.mission_type == mission_type:
                         got = msg
                         break
@@ -164,9 +166,9 @@ class GroundStation:
         p = [*params, *([0.0] * (7 - len(params)))]
         for _ in range(10):
             self.conn.mav.command_long_send(1, 1, command, 0, *p)
-            deadline = time.monotonic() + 1.0
-            while time.monotonic() < deadline:
-                msg = self.recv(["COMMAND_ACK"], timeout_s=deadline - time.monotonic())
+            deadline = self.clock.monotonic() + 1.0
+            while self.clock.monotonic() < deadline:
+                msg = self.recv(["COMMAND_ACK"], timeout_s=deadline - self.clock.monotonic())
                 if msg is not None and msg.command == command:
                     return int(msg.result)
         return None
@@ -198,18 +200,19 @@ def survey_items(home_first: bool, n: int = 5, shift_deg: float = 0.0) -> list[M
 
 @pytest.fixture
 def ardupilot() -> Iterator[SimulatedVehicle]:
-    with SimulatedVehicle(boot_delay_s=0.0, gps_fix_s=0.0, home=HOME) as vehicle:
+    with SimulatedVehicle(boot_delay_s=0.0, gps_fix_s=0.0, home=HOME, clock=VirtualClock()) as vehicle:
         yield vehicle
 
 
 @pytest.fixture
 def px4() -> Iterator[SimulatedVehicle]:
-    with SimulatedVehicle(autopilot=Autopilot.PX4, gps_fix_s=0.0, home=HOME) as vehicle:
+    with SimulatedVehicle(autopilot=Autopilot.PX4, gps_fix_s=0.0, home=HOME, clock=VirtualClock()) as vehicle:
         yield vehicle
 
 
 def connect(vehicle: SimulatedVehicle, timeout_s: float = 0.4) -> GroundStation:
-    return GroundStation(vehicle.url_for_client, timeout_s=timeout_s)
+    """A ground station on the vehicle's clock."""
+    return GroundStation(vehicle.url_for_client, timeout_s=timeout_s, clock=vehicle.clock)
 
 
 # --- identity ---------------------------------------------------------------------------------
@@ -225,7 +228,9 @@ def connect(vehicle: SimulatedVehicle, timeout_s: float = 0.4) -> GroundStation:
 def test_heartbeat_names_the_autopilot_and_says_it_is_a_simulator(
     autopilot: Autopilot, vehicle_type: VehicleType, mav_autopilot: int, mav_type: int
 ) -> None:
-    with SimulatedVehicle(autopilot=autopilot, vehicle_type=vehicle_type, speedup=4) as vehicle:
+    with SimulatedVehicle(
+        autopilot=autopilot, vehicle_type=vehicle_type, speedup=4, clock=VirtualClock()
+    ) as vehicle:
         assert vehicle.url_for_client.startswith("tcp://127.0.0.1:")
         assert not vehicle.url_for_client.endswith(":0")
         gcs = connect(vehicle)
@@ -235,8 +240,8 @@ def test_heartbeat_names_the_autopilot_and_says_it_is_a_simulator(
         assert any("sfap simulated vehicle" in text for text in gcs.texts)
         if autopilot is Autopilot.ARDUPILOT:
             beats = 0
-            start = time.monotonic()
-            while time.monotonic() - start < 1.0:
+            start = vehicle.clock.monotonic()
+            while vehicle.clock.monotonic() - start < 1.0:
                 if gcs.recv(["HEARTBEAT"], timeout_s=0.1) is not None:
                     beats += 1
             assert 3 <= beats <= 5  # 1 Hz of simulated time at speedup 4
@@ -330,7 +335,7 @@ def test_ardupilot_legacy_request_is_answered_with_legacy_item(
 
 
 def test_ardupilot_refuses_upload_for_a_moment_after_boot() -> None:
-    with SimulatedVehicle(boot_delay_s=1.0, gps_fix_s=0.0) as vehicle:
+    with SimulatedVehicle(boot_delay_s=1.0, gps_fix_s=0.0, clock=VirtualClock()) as vehicle:
         gcs = connect(vehicle)
         items = survey_items(home_first=True, n=1)
         if vehicle.sim_time_s < 0.8:
@@ -343,7 +348,7 @@ def test_ardupilot_refuses_upload_for_a_moment_after_boot() -> None:
 
 
 def test_home_reads_back_as_zeros_until_gps_fix() -> None:
-    with SimulatedVehicle(boot_delay_s=0, gps_fix_s=1e6) as vehicle:
+    with SimulatedVehicle(boot_delay_s=0, gps_fix_s=1e6, clock=VirtualClock()) as vehicle:
         gcs = connect(vehicle)
         assert gcs.upload(survey_items(home_first=True, n=1))[0] == ACCEPTED
         home = gcs.download()[0]
@@ -371,7 +376,9 @@ def test_ardupilot_out_of_sequence_item_gets_invalid_sequence_and_upload_goes_on
 
 
 def test_vehicle_rerequests_then_cancels_a_silent_upload() -> None:
-    with SimulatedVehicle(boot_delay_s=0, request_timeout_s=0.15, upload_timeout_s=0.8) as vehicle:
+    with SimulatedVehicle(
+        boot_delay_s=0, request_timeout_s=0.15, upload_timeout_s=0.8, clock=VirtualClock()
+    ) as vehicle:
         gcs = connect(vehicle)
         gcs.conn.mav.mission_count_send(1, 1, 3, 0)
         seen: list[Any] = []
@@ -392,7 +399,7 @@ def test_vehicle_rerequests_then_cancels_a_silent_upload() -> None:
 
 @pytest.mark.parametrize("autopilot", [Autopilot.ARDUPILOT, Autopilot.PX4])
 def test_download_is_denied_during_an_upload(autopilot: Autopilot) -> None:
-    with SimulatedVehicle(autopilot=autopilot, boot_delay_s=0) as vehicle:
+    with SimulatedVehicle(autopilot=autopilot, boot_delay_s=0, clock=VirtualClock()) as vehicle:
         gcs = connect(vehicle)
         gcs.conn.mav.mission_count_send(1, 1, 3, 0)
         gcs.recv(["MISSION_REQUEST", "MISSION_REQUEST_INT"], 2)
@@ -419,7 +426,6 @@ def test_ardupilot_rules_for_plane_copter_and_nan() -> None:
     assert isinstance(ardupilot_store(wire(16, 3, (0, 0, 0, math.nan)), VehicleType.MULTIROTOR), WireItem)
     gimbal = MissionItem.gimbal_manager_pitch_yaw(-90.0, 0.0)  # params 3-4 NaN ("unchanged")
     msg = to_mission_item_int(gimbal, 1, 1, 1, 0)
-    from acquisition.simulator.server import wire_item_from_message
 
     assert ardupilot_store(wire_item_from_message(msg), VehicleType.MULTIROTOR) == INVALID_PARAM3
     mount = ardupilot_store(
@@ -573,14 +579,14 @@ def test_fault_pipe_rates_match_the_configuration() -> None:
 
 def test_faults_on_the_wire_loss_duplication_reordering_latency() -> None:
     faults = FaultConfig(loss_pct=20, duplicate_pct=10, reorder_pct=10, seed=3)
-    with SimulatedVehicle(speedup=60, faults=faults, gps_fix_s=0) as vehicle:
+    with SimulatedVehicle(speedup=60, faults=faults, gps_fix_s=0, clock=VirtualClock()) as vehicle:
         gcs = connect(vehicle)
         gcs.recv(["NONE"], timeout_s=0.3)
         sent_before = sum(vehicle.sent_counts.values())
         seqs: list[int] = []
-        deadline = time.monotonic() + 1.2
-        while time.monotonic() < deadline:
-            msg = gcs.conn.recv_match(blocking=True, timeout=0.2)
+        deadline = vehicle.clock.monotonic() + 1.2
+        while vehicle.clock.monotonic() < deadline:
+            msg = gcs.recv(None, timeout_s=0.2)
             if msg is not None and msg.get_type() != "BAD_DATA":
                 seqs.append(msg.get_seq())
         sent = sum(vehicle.sent_counts.values()) - sent_before
@@ -594,13 +600,16 @@ def test_faults_on_the_wire_loss_duplication_reordering_latency() -> None:
     # a message held back lands after the next one: one step backwards per reordering
     assert 0.04 * len(seqs) < backwards < 0.12 * len(seqs)
 
-    with SimulatedVehicle(faults=FaultConfig(latency_s=0.15), boot_delay_s=0) as vehicle:
+    with SimulatedVehicle(
+        faults=FaultConfig(latency_s=0.15), boot_delay_s=0, clock=VirtualClock()
+    ) as vehicle:
         gcs = connect(vehicle, timeout_s=2.0)
         gcs.drain()
-        start = time.monotonic()
+        start = vehicle.clock.monotonic()
         gcs.conn.mav.mission_request_list_send(1, 1, 0)
         assert gcs.recv(["MISSION_COUNT"], 2) is not None
-        assert time.monotonic() - start >= 0.3  # 0.15 s each way
+        # 0.15 s each way, on simulated time: no sooner (float sums aside), and no later than a step
+        assert 0.3 - 1e-9 <= vehicle.clock.monotonic() - start <= 0.3 + 0.003
         gcs.close()
 
 
@@ -616,6 +625,7 @@ def test_transfer_through_loss_duplication_and_reordering(autopilot: Autopilot) 
         faults=faults,
         request_timeout_s=0.1,
         home=HOME,
+        clock=VirtualClock(),
     ) as v:
         gcs = connect(v, timeout_s=0.15)
         ack, _ = gcs.upload(items, retries=400)
@@ -645,7 +655,9 @@ def test_transfer_through_loss_duplication_and_reordering(autopilot: Autopilot) 
 def test_arm_and_auto_by_commands(
     autopilot: Autopilot, mode_params: tuple[int, int, int], custom_mode: int
 ) -> None:
-    with SimulatedVehicle(autopilot=autopilot, boot_delay_s=0, gps_fix_s=0, home=HOME) as v:
+    with SimulatedVehicle(
+        autopilot=autopilot, boot_delay_s=0, gps_fix_s=0, home=HOME, clock=VirtualClock()
+    ) as v:
         v.load_mission(survey_items(home_first=False, n=1))
         gcs = connect(v)
         assert gcs.command(400, 1.0) == 0  # MAV_RESULT_ACCEPTED
@@ -663,7 +675,7 @@ def test_arm_and_auto_by_commands(
 
 
 def test_set_mode_message_and_set_current() -> None:
-    with SimulatedVehicle(autopilot=Autopilot.PX4, gps_fix_s=0, home=HOME) as v:
+    with SimulatedVehicle(autopilot=Autopilot.PX4, gps_fix_s=0, home=HOME, clock=VirtualClock()) as v:
         v.load_mission(survey_items(home_first=False, n=3))
         gcs = connect(v)
         # SET_MODE with PX4's custom mode: main AUTO (4) << 16 | sub RTL (5) << 24
@@ -681,7 +693,7 @@ def test_set_mode_message_and_set_current() -> None:
 
 
 def test_ground_station_can_cancel_its_upload() -> None:
-    with SimulatedVehicle(boot_delay_s=0, request_timeout_s=0.1) as vehicle:
+    with SimulatedVehicle(boot_delay_s=0, request_timeout_s=0.1, clock=VirtualClock()) as vehicle:
         gcs = connect(vehicle)
         gcs.conn.mav.mission_count_send(1, 1, 5, 0)
         assert gcs.recv(["MISSION_REQUEST"], 2) is not None
@@ -702,11 +714,11 @@ def test_serial_link_speed_bounds_the_transfer_time() -> None:
         floor_bytes += len(to_mission_item_int(item, seq, 1, 1, 0).pack(packer))
         floor_bytes += len(request.pack(packer))
     floor_s = floor_bytes * 10 / baud  # stop and wait: every request, then every item
-    with SimulatedVehicle(autopilot=Autopilot.PX4, gps_fix_s=0, link_baud=baud) as v:
+    with SimulatedVehicle(autopilot=Autopilot.PX4, gps_fix_s=0, link_baud=baud, clock=VirtualClock()) as v:
         gcs = connect(v, timeout_s=1.0)
-        start = time.monotonic()
+        start = v.clock.monotonic()
         ack, _ = gcs.upload(items)
-        elapsed = time.monotonic() - start
+        elapsed = v.clock.monotonic() - start
         gcs.close()
     assert ack == ACCEPTED
     # The paced link cannot be beaten (how much slower it is, is the benchmark's business).
@@ -746,19 +758,22 @@ def test_serial_link_is_never_faster_than_its_baud_rate() -> None:
     # Telemetry at 20x real time floods a 9600-baud link: bytes reach the ground station as
     # fast as the line allows and never faster (8N1: 960 bytes/s), give or take one packet.
     baud = 9600
-    with SimulatedVehicle(speedup=20, gps_fix_s=0, link_baud=baud, streams_on_request=False) as vehicle:
+    clock = VirtualClock()
+    with SimulatedVehicle(
+        speedup=20, gps_fix_s=0, link_baud=baud, streams_on_request=False, clock=clock
+    ) as vehicle:
         host, port = vehicle.url_for_client.removeprefix("tcp://").split(":")
         with socket.create_connection((host, int(port)), timeout=2.0) as sock:
-            time.sleep(1.2)  # let the link's buffer fill: from here the line is the limit
+            clock.sleep(1.2)  # let the link's buffer fill: from here the line is the limit
             sock.setblocking(False)
             with contextlib.suppress(BlockingIOError):
                 while sock.recv(65536):
                     pass
-            sock.setblocking(True)
             arrivals: list[tuple[float, int]] = []
-            end = time.monotonic() + 1.5
-            while time.monotonic() < end:
-                arrivals.append((time.monotonic(), len(sock.recv(65536))))
+            end = clock.monotonic() + 1.5
+            while clock.monotonic() < end:
+                if clock.wait_readable([sock.fileno()], end - clock.monotonic()):
+                    arrivals.append((clock.monotonic(), len(sock.recv(65536))))
     t0 = arrivals[0][0]
     total = 0
     for t, n in arrivals[1:]:
@@ -1032,17 +1047,18 @@ def test_configs_refuse_impossible_values() -> None:
 
 
 def _count(gcs: GroundStation, seconds: float) -> Counter[str]:
+    """Messages received in ``seconds`` of the ground station's clock, by type."""
     seen: Counter[str] = Counter()
-    end = time.monotonic() + seconds
-    while time.monotonic() < end:
-        msg = gcs.conn.recv_match(blocking=True, timeout=0.05)
+    end = gcs.clock.monotonic() + seconds
+    while (left := end - gcs.clock.monotonic()) > 0:
+        msg = gcs.recv(None, timeout_s=left)
         if msg is not None:
             seen[msg.get_type()] += 1
     return seen
 
 
 def test_ardupilot_sends_only_heartbeats_until_asked_then_what_was_asked() -> None:
-    with SimulatedVehicle(gps_fix_s=0.0, home=HOME, speedup=5) as vehicle:
+    with SimulatedVehicle(gps_fix_s=0.0, home=HOME, speedup=5, clock=VirtualClock()) as vehicle:
         gcs = connect(vehicle)
         quiet = _count(gcs, 1.0)
         assert quiet["HEARTBEAT"] >= 3  # 1 Hz of simulated time, 5x
@@ -1068,7 +1084,9 @@ def test_ardupilot_sends_only_heartbeats_until_asked_then_what_was_asked() -> No
 
 
 def test_px4_streams_from_boot() -> None:
-    with SimulatedVehicle(autopilot=Autopilot.PX4, gps_fix_s=0.0, home=HOME, speedup=5) as vehicle:
+    with SimulatedVehicle(
+        autopilot=Autopilot.PX4, gps_fix_s=0.0, home=HOME, speedup=5, clock=VirtualClock()
+    ) as vehicle:
         gcs = connect(vehicle)
         seen = _count(gcs, 1.0)
         assert seen["GLOBAL_POSITION_INT"] >= 20 and seen["SYSTEM_TIME"] >= 2, seen
@@ -1081,7 +1099,9 @@ def test_vehicle_moves_to_the_uploaded_missions_home_before_its_first_flight() -
     items[0] = MissionItem(
         command=16, frame=MavFrame.GLOBAL, param5=far.lat_deg, param6=far.lon_deg, param7=412.5
     )
-    with SimulatedVehicle(boot_delay_s=0.0, gps_fix_s=0.0, home=HOME, follow_mission_home=True) as vehicle:
+    with SimulatedVehicle(
+        boot_delay_s=0.0, gps_fix_s=0.0, home=HOME, follow_mission_home=True, clock=VirtualClock()
+    ) as vehicle:
         gcs = connect(vehicle)
         result, _ = gcs.upload(items)
         assert result == ACCEPTED
@@ -1136,7 +1156,13 @@ def test_simulated_flight_writes_one_frame_per_photo(tmp_path: Path) -> None:
 
     card = FrameCard(tmp_path / "frames", clock_offset_s=12.5)
     with SimulatedVehicle(
-        boot_delay_s=0.0, gps_fix_s=0.0, home=HOME, speedup=40, frames=card, streams_on_request=False
+        boot_delay_s=0.0,
+        gps_fix_s=0.0,
+        home=HOME,
+        speedup=40,
+        frames=card,
+        streams_on_request=False,
+        clock=VirtualClock(),
     ) as vehicle:
         items = survey_items(home_first=False, n=3)
         items.insert(2, MissionItem.cam_trigger_distance(15.0))

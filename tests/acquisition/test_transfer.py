@@ -21,6 +21,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
+from acquisition.clock import WALL_CLOCK, VirtualClock
 from acquisition.errors import TransferError
 from acquisition.link import Link
 from acquisition.mavlink_items import (
@@ -30,19 +31,17 @@ from acquisition.mavlink_items import (
     from_mission_item,
     to_mission_item_int,
 )
-from acquisition.simulator.server import FaultConfig, SimulatedVehicle
-from acquisition.transfer import (
+from acquisition.mission_protocol import TransferPhase
+from acquisition.readback import verify_readback
+from acquisition.simulator.faults import FaultConfig
+from acquisition.simulator.server import SimulatedVehicle
+from acquisition.transfer import clear_mission, download_mission, downloaded_mission, upload_mission
+from acquisition.transfer_outcome import (
     MissionState,
     MissionTooLargeError,
     MissionTransferError,
     MissionVerificationError,
-    TransferPhase,
-    clear_mission,
     describe_mission_result,
-    download_mission,
-    downloaded_mission,
-    upload_mission,
-    verify_readback,
 )
 from planner.errors import MissionValidationError
 from planner.mission import (
@@ -95,7 +94,13 @@ def vehicle(
 ) -> SimulatedVehicle:
     options.setdefault("boot_delay_s", 0.0)
     options.setdefault("request_timeout_s", 0.1)  # the vehicle re-requests fast in tests
+    options.setdefault("clock", VirtualClock())
     return SimulatedVehicle(autopilot=autopilot, faults=faults, vehicle_type=vehicle_type, **options)
+
+
+def connect(sim: SimulatedVehicle) -> Link:
+    """A link to ``sim`` on the vehicle's clock (simulated time unless it is the wall clock)."""
+    return Link.open(sim.url_for_client, heartbeat_timeout_s=5.0, clock=sim.clock)
 
 
 def assert_stored_exactly(sim: SimulatedVehicle, sent: list[MissionItem]) -> None:
@@ -320,12 +325,12 @@ def run_round_trip(
     **options: Any,
 ) -> list[MissionItem]:
     """Upload (verified) and check the vehicle's store; with ``full`` also clear (and with
-    ``download`` download first).
+    ``download`` download first). The link runs on the vehicle's clock.
 
     Returns what the vehicle stored after the upload."""
     progress: list[tuple[TransferPhase, int, int]] = []
     settings = {**FAST, **options}
-    with Link.open(sim.url_for_client, heartbeat_timeout_s=5.0) as link:
+    with connect(sim) as link:
         result = upload_mission(
             link,
             mission_of(items, sim.autopilot),
@@ -375,10 +380,16 @@ def test_clean_link_700_items(autopilot: Autopilot) -> None:
         run_round_trip(sim, survey_items(700), full=False)
 
 
+#: The faulty-link case that also runs on the wall clock (every other one runs on simulated
+#: time, where the same timeouts fire without the wait): all the faults at once, latency included.
+REAL_TIME_CASE = ("mixed", Autopilot.ARDUPILOT)
+
+
 @pytest.mark.parametrize("autopilot", [Autopilot.ARDUPILOT, Autopilot.PX4])
 @pytest.mark.parametrize("fault", list(FAULTS))
 def test_faulty_link_50_items(autopilot: Autopilot, fault: str) -> None:
-    with vehicle(autopilot, FAULTS[fault], **LOSSY_VEHICLE) as sim:
+    clock = WALL_CLOCK if (fault, autopilot) == REAL_TIME_CASE else VirtualClock()
+    with vehicle(autopilot, FAULTS[fault], clock=clock, **LOSSY_VEHICLE) as sim:
         run_round_trip(sim, survey_items(50, seed=FAULTS[fault].seed), download=False, **LOSSY)
 
 
@@ -411,7 +422,7 @@ def test_fixed_wing_storage_is_verified() -> None:
 
 def test_ardupilot_no_space_after_boot_is_retried() -> None:
     with vehicle(Autopilot.ARDUPILOT, boot_delay_s=0.6) as sim:
-        with Link.open(sim.url_for_client, heartbeat_timeout_s=5.0) as link:
+        with connect(sim) as link:
             result = upload_mission(link, mission_of(survey_items(10)), **{**FAST, "no_space_wait_s": 0.3})
         assert any("NO_SPACE" in note for note in result.notes)
         assert_stored_exactly(sim, survey_items(10))
@@ -423,7 +434,7 @@ def test_vehicle_without_room_refuses(autopilot: Autopilot) -> None:
         sim.load_mission(survey_items(5))
         before = sim.stored_mission()
         with (
-            Link.open(sim.url_for_client, heartbeat_timeout_s=5.0) as link,
+            connect(sim) as link,
             pytest.raises(MissionTransferError) as caught,
         ):
             upload_mission(link, mission_of(survey_items(20)), **{**FAST, "no_space_retries": 1})
@@ -447,7 +458,7 @@ def test_vehicle_refusing_an_item(autopilot: Autopilot, state: MissionState) -> 
     with vehicle(autopilot, FaultConfig(refuse="invalid")) as sim:
         sim.load_mission(old)
         with (
-            Link.open(sim.url_for_client, heartbeat_timeout_s=5.0) as link,
+            connect(sim) as link,
             pytest.raises(MissionTransferError) as caught,
         ):
             upload_mission(link, mission_of(new), **FAST)
@@ -466,7 +477,7 @@ def test_invalid_mission_is_not_sent() -> None:
     bad = [MissionItem.waypoint(95.0, 0.5, 50.0), MissionItem.waypoint(41.0, 0.5, 500.0)]
     with vehicle(Autopilot.PX4) as sim:
         with (
-            Link.open(sim.url_for_client, heartbeat_timeout_s=5.0) as link,
+            connect(sim) as link,
             pytest.raises(MissionValidationError) as caught,
         ):
             upload_mission(link, mission_of(bad), max_alt_rel_home_m=120.0, **FAST)
@@ -482,7 +493,7 @@ def test_nan_that_ardupilot_refuses_is_caught_before_sending() -> None:
     ]
     with vehicle(Autopilot.ARDUPILOT) as sim:
         with (
-            Link.open(sim.url_for_client, heartbeat_timeout_s=5.0) as link,
+            connect(sim) as link,
             pytest.raises(MissionValidationError, match="param 3 is empty"),
         ):
             upload_mission(link, mission_of(items), **FAST)
@@ -493,7 +504,7 @@ def test_corrupted_store_fails_verification() -> None:
     items = survey_items(12)
     with (
         vehicle(Autopilot.ARDUPILOT) as sim,
-        Link.open(sim.url_for_client, heartbeat_timeout_s=5.0) as link,
+        connect(sim) as link,
     ):
         upload_mission(link, mission_of(items), **FAST)
         sim.corrupt_stored_item(5, param5=items[4].lat_deg + 1e-7)
@@ -585,7 +596,7 @@ def relay(
 )
 def test_link_drops_mid_transfer(autopilot: Autopilot, state: MissionState) -> None:
     old = survey_items(6, seed=9)
-    with vehicle(autopilot) as sim:
+    with vehicle(autopilot, clock=WALL_CLOCK) as sim:
         sim.load_mission(old)
         with (
             relay(sim.url_for_client, cut_after_items=20) as url,
@@ -628,7 +639,7 @@ def test_item_altered_in_flight_fails_verification() -> None:
         return message
 
     with (
-        vehicle(Autopilot.PX4) as sim,
+        vehicle(Autopilot.PX4, clock=WALL_CLOCK) as sim,
         relay(sim.url_for_client, alter=alter) as url,
         Link.open(url, heartbeat_timeout_s=5.0) as link,
         pytest.raises(MissionVerificationError) as caught,
@@ -649,7 +660,7 @@ def test_fence_is_kept_apart_from_the_mission() -> None:
     items = survey_items(10)
     with (
         vehicle(Autopilot.ARDUPILOT) as sim,
-        Link.open(sim.url_for_client, heartbeat_timeout_s=5.0) as link,
+        connect(sim) as link,
     ):
         upload_mission(link, mission_of(items), **FAST)
         result = upload_mission(link, mission_of(fence), mission_type=MissionType.FENCE, **FAST)
@@ -663,7 +674,7 @@ def test_downloaded_mission_takes_ardupilot_home() -> None:
     items = survey_items(5)
     with vehicle(Autopilot.ARDUPILOT, gps_fix_s=0.0) as sim:
         sim.load_mission(items)
-        with Link.open(sim.url_for_client, heartbeat_timeout_s=5.0) as link:
+        with connect(sim) as link:
             got = download_mission(link, timeout_s=0.2)
     mission = downloaded_mission(got, Autopilot.ARDUPILOT, VehicleType.MULTIROTOR)
     assert len(mission.items) == 5
@@ -676,7 +687,7 @@ def test_download_from_vehicle_that_never_answers() -> None:
         return None if message.get_type() == "MISSION_REQUEST_LIST" else message
 
     with (
-        vehicle(Autopilot.PX4) as sim,
+        vehicle(Autopilot.PX4, clock=WALL_CLOCK) as sim,
         relay(sim.url_for_client, alter=swallow_requests) as url,
         Link.open(url, heartbeat_timeout_s=5.0) as link,
         pytest.raises(TransferError) as caught,
@@ -717,7 +728,7 @@ def test_mission_larger_than_the_vehicle_is_refused_at_once_with_the_excess() ->
         sim.load_mission(survey_items(5))
         before = sim.stored_mission()
         with (
-            Link.open(sim.url_for_client, heartbeat_timeout_s=5.0) as link,
+            connect(sim) as link,
             pytest.raises(MissionTooLargeError) as caught,
         ):
             upload_mission(link, mission_of(items), **{**FAST, "no_space_wait_s": 2.0})
@@ -746,7 +757,7 @@ def test_plan_made_for_the_other_autopilot_is_named_not_sent(planned: Autopilot,
     name = {Autopilot.PX4: "PX4", Autopilot.ARDUPILOT: "ArduPilot"}
     with vehicle(actual) as sim:
         with (
-            Link.open(sim.url_for_client, heartbeat_timeout_s=5.0) as link,
+            connect(sim) as link,
             pytest.raises(MissionValidationError) as caught,
         ):
             upload_mission(link, mission, **FAST)
@@ -767,7 +778,7 @@ def test_trigger_distance_truncated_to_whole_metres_fails_verification() -> None
     assert [(d.index, d.field, d.received) for d in found] == [(1, "param 1", "11")]
     # and end to end: a vehicle that stored the truncated distance is caught by the read-back
     items = [*survey_items(6), MissionItem.cam_trigger_distance(11.06)]
-    with vehicle(Autopilot.ARDUPILOT) as sim, Link.open(sim.url_for_client, heartbeat_timeout_s=5.0) as link:
+    with vehicle(Autopilot.ARDUPILOT) as sim, connect(sim) as link:
         upload_mission(link, mission_of(items), **FAST)
         sim.corrupt_stored_item(len(items), param1=11.0)
         received = download_mission(link, timeout_s=0.2)

@@ -10,7 +10,8 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-from acquisition.simulator.server import FaultConfig, SimulatedVehicle
+from acquisition.simulator.faults import FaultConfig
+from acquisition.simulator.server import SimulatedVehicle
 from planner.formats import read_mission
 from planner.formats.qgc_plan import write_plan
 from planner.formats.waypoints import write_waypoints
@@ -136,7 +137,7 @@ def test_not_a_mission_file(tmp_path: Path) -> None:
 
 def test_mission_over_the_altitude_limit_is_not_sent(tmp_path: Path) -> None:
     path = write_plan(mission(), tmp_path / "m.plan")
-    code, _, err = run("upload", str(path), "--connect", "tcp://127.0.0.1:9", "--max-alt-m", "50")
+    code, _, err = run("upload", str(path), "--connect", "tcp://127.0.0.1:9", "--max-alt-rel-home-m", "50")
     assert code == 2  # a mission that fails validation is bad input
     assert "exceeds the vehicle limit 50.0 m" in err
     assert "Nothing was sent" in err

@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 from survey_frames import write_frame
 
+from acquisition.clock import VirtualClock
 from acquisition.geotag import geotag_images
 from acquisition.geotag_results import FrameStatus
 from acquisition.simulator.server import SimulatedVehicle
@@ -39,9 +40,10 @@ def flown(tmp_path_factory: pytest.TempPathFactory) -> tuple[SurveyPlan, Path, S
     plan = plan_survey(load_spec(REPO / "missions" / "bardenas-gully.toml"))
     folder = tmp_path_factory.mktemp("flight")
     tlog = folder / "flight.tlog"
+    # on simulated time: the same flight, in steps of 2 ms x 400, without waiting for them
     vehicle = SimulatedVehicle(
         url="tcpin://127.0.0.1:0", autopilot=plan.mission.autopilot, speedup=400.0,
-        tlog_path=tlog, home=plan.home,
+        tlog_path=tlog, home=plan.home, clock=VirtualClock(),
     )  # fmt: skip
     with vehicle:
         vehicle.load_mission(plan.mission.items)

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from acquisition.clock import VirtualClock
 from acquisition.link import Link
 from acquisition.mavlink_items import is_global_frame, plain_frame
 from acquisition.simulator.server import SimulatedVehicle
@@ -70,10 +71,11 @@ def test_a_site_400_m_above_sea_level_is_flown_at_the_planned_height_above_groun
     assert {plain_frame(it.frame) for it in positional} == {MavFrame.GLOBAL_RELATIVE_ALT}
     assert all(it.alt_m <= HEIGHT_M + 1e-6 for it in positional)
 
+    clock = VirtualClock()  # simulated time: the upload and the flight without their waits
     with SimulatedVehicle(
-        home=mission.home, speedup=200, boot_delay_s=0.0, gps_fix_s=0.0, streams_on_request=False
+        home=mission.home, speedup=200, boot_delay_s=0.0, gps_fix_s=0.0, streams_on_request=False, clock=clock
     ) as vehicle:
-        with Link.open(vehicle.url_for_client, heartbeat_timeout_s=5.0) as link:
+        with Link.open(vehicle.url_for_client, heartbeat_timeout_s=5.0, clock=clock) as link:
             upload_mission(link, mission, timeout_s=0.5)
         vehicle.auto_start()
         assert vehicle.wait_landed(90), "the simulated flight did not end"
