@@ -11,6 +11,7 @@ from numpy.typing import NDArray
 
 from .errors import PlanningError
 from .exposure import from_pass_frame
+from .fixed_wing import fixed_wing_for
 from .lines import Segment
 from .mission_builder import BuiltMission, PassPlan, build_mission
 from .plan import PlanLayout, SurveyPlan
@@ -31,6 +32,7 @@ def build_part(plan: SurveyPlan, layout: PlanLayout, pass_plans: list[PassPlan])
         spec=spec, frame=plan.frame, home=plan.home, home_xy=plan.home_xy_m, alt_agl_m=layout.alt_agl_m,
         speed_m_s=layout.speed_m_s, passes=pass_plans, zones_xy=plan.exclusions_xy,
         true_north_grid_deg=layout.true_north_grid_deg,
+        fixed_wing=fixed_wing_for(spec, layout.speed_m_s, layout.true_north_grid_deg),
     )  # fmt: skip
     if spec.terrain is not None and layout.dem is not None:
         from .terrain_follow import apply_terrain

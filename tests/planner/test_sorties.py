@@ -107,3 +107,35 @@ def test_scales_as_sorties_never_mix_heights() -> None:
         heights = {round(float(a), 3) for a in sortie.plan.stations.alt_agl_m}
         assert len(heights) == 1
     assert station_keys(plan) == sum((station_keys(s.plan) for s in sorties), Counter())
+
+
+def test_a_planes_sorties_take_off_turn_and_land_as_a_plane() -> None:
+    """Each sortie of a fixed-wing plan is flown by the plane the spec describes, like the whole
+    plan: NAV_TAKEOFF at the spec's take-off pitch, and the landing sequence (DO_LAND_START after
+    the survey, NAV_LAND last)."""
+    import dataclasses
+    from pathlib import Path
+
+    from planner.spec import load_spec
+    from planner.survey import plan_survey
+
+    spec = load_spec(Path(__file__).parents[2] / "missions" / "huesca-plane-block.toml")
+    whole = plan_survey(spec)
+    minutes = whole.summary.flight_time_s / 60.0
+    vehicle = dataclasses.replace(
+        spec.vehicle, endurance_s=whole.summary.flight_time_s * 0.6, reserve_pct=0.0
+    )
+    sorties = split_sorties(plan_survey(dataclasses.replace(spec, vehicle=vehicle)))
+    assert len(sorties) >= 2, f"{minutes:.1f} min of flight in 0.6 of its time must take two sorties"
+
+    def commands(plan: SurveyPlan) -> list[int]:
+        return [int(item.command) for item in plan.mission.items]
+
+    for plan in [whole, *(s.plan for s in sorties)]:
+        cmds = commands(plan)
+        takeoffs = [item for item in plan.mission.items if item.command == MavCmd.NAV_TAKEOFF]
+        assert len(takeoffs) == 1 and takeoffs[0].param1 == pytest.approx(spec.vehicle.takeoff_pitch_deg)
+        assert MavCmd.DO_LAND_START in cmds and cmds[-1] == MavCmd.NAV_LAND
+        assert cmds.index(MavCmd.DO_LAND_START) > max(
+            i for i, c in enumerate(cmds) if c == MavCmd.DO_SET_CAM_TRIGG_DIST
+        )
