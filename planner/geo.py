@@ -9,15 +9,17 @@ easting / longitude, y northing / latitude.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
-import shapely
 from geographiclib.geodesic import Geodesic
 from numpy.typing import ArrayLike, NDArray
 from pyproj import CRS, Transformer
-from shapely.geometry.base import BaseGeometry
 
 from .errors import AreaError
+
+if TYPE_CHECKING:  # shapely is imported where geometries are used: geotag does without it
+    from shapely.geometry.base import BaseGeometry
 
 WGS84 = CRS.from_epsg(4326)
 
@@ -91,10 +93,14 @@ class LocalFrame:
 
     def geometry_to_xy(self, geom: BaseGeometry) -> BaseGeometry:
         """A shapely geometry in lon/lat, projected into this frame."""
+        import shapely
+
         return shapely.transform(geom, lambda c: np.column_stack(self.to_xy(c[:, 0], c[:, 1])))
 
     def geometry_to_lonlat(self, geom: BaseGeometry) -> BaseGeometry:
         """A shapely geometry in this frame, back to lon/lat."""
+        import shapely
+
         return shapely.transform(geom, lambda c: np.column_stack(self.to_lonlat(c[:, 0], c[:, 1])))
 
 
