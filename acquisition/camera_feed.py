@@ -28,11 +28,11 @@ from __future__ import annotations
 
 import logging
 import math
-import time
 from collections.abc import Callable
 
 from . import mavlink_messages as mm
 from .attitude import roll_pitch_yaw_deg_from_quaternion
+from .clock import WALL_CLOCK, Clock
 from .monitor_state import CameraEvent
 
 log = logging.getLogger(__name__)
@@ -74,7 +74,8 @@ class CameraFeed:
     ``on_late_join(why)`` is called once the image indices show that photos were taken before
     the recording started."""
 
-    def __init__(self, on_late_join: Callable[[str], None]) -> None:
+    def __init__(self, on_late_join: Callable[[str], None], clock: Clock = WALL_CLOCK) -> None:
+        self.clock = clock
         self._on_late_join = on_late_join
         self._seen: dict[tuple[str, int, int], float] = {}  # (type, camera, index) -> event time
         self._pending: dict[int, tuple[float, mm.CameraTrigger]] = {}  # seq -> (wall s, trigger)
@@ -175,14 +176,14 @@ class CameraFeed:
 
     def on_trigger(self, m: mm.CameraTrigger) -> None:
         if not self._positional:
-            self._pending.setdefault(m.seq, (time.monotonic(), m))
+            self._pending.setdefault(m.seq, (self.clock.monotonic(), m))
 
     def release(self, *, force: bool) -> list[CameraEvent]:
         """The CAMERA_TRIGGERs held for :data:`TRIGGER_HOLD_S` (all of them with ``force``)."""
         out: list[CameraEvent] = []
         if not self._pending:
             return out
-        now = time.monotonic()
+        now = self.clock.monotonic()
         for seq in sorted(self._pending):
             held_since, m = self._pending[seq]
             if not force and now - held_since < TRIGGER_HOLD_S:

@@ -11,6 +11,9 @@ vehicle's loop, a ground station that holds a link, the link's heartbeat); it jo
 :meth:`VirtualClock.join` and leaves with :meth:`VirtualClock.leave`. Other threads may wait on
 the clock too (a test waiting for a landing): they follow simulated time and never hold it.
 
+Threads that hand each other messages use a :class:`ClockQueue`: an item not yet taken is a
+byte not yet read, so simulated time does not move past it.
+
 Sockets must be local (loopback): bytes sent are then readable at once by the peer, which is
 what "no byte in flight" checks with a zero-timeout ``select``.
 """
@@ -19,12 +22,13 @@ from __future__ import annotations
 
 import contextlib
 import os
+import queue
 import select
 import threading
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Any, Protocol
 
 
 class Clock(Protocol):
@@ -267,6 +271,62 @@ class VirtualClock:
         for waiter in self._waiting.values():
             if waiter.deadline <= self._now:
                 self._wake(waiter)
+
+
+class ClockQueue:
+    """A queue between threads whose waits run on ``clock``: every item put writes a byte into
+    a pipe that the taker watches, so a :class:`VirtualClock` sees an item not yet taken as a
+    byte not yet read and does not move time on. :meth:`close` it when done."""
+
+    def __init__(self, clock: Clock = WALL_CLOCK) -> None:
+        self.clock = clock
+        self._items: queue.SimpleQueue[Any] = queue.SimpleQueue()
+        self._lock = threading.Lock()  # no byte written into a descriptor closed (and reused)
+        self._closed = False
+        self._read_fd, self._write_fd = os.pipe()
+        os.set_blocking(self._read_fd, False)
+        os.set_blocking(self._write_fd, False)
+
+    def put(self, item: Any) -> None:
+        self._items.put(item)
+        with self._lock:
+            if not self._closed:
+                with contextlib.suppress(BlockingIOError):  # the pipe is full: readable already
+                    os.write(self._write_fd, b"x")
+
+    def get_nowait(self) -> Any | None:
+        """The next item, or None when there is none."""
+        try:
+            return self._items.get_nowait()
+        except queue.Empty:
+            return None
+
+    def get(self, timeout_s: float) -> Any | None:
+        """The next item, waiting up to ``timeout_s`` on the clock; None when none came."""
+        deadline = self.clock.monotonic() + timeout_s
+        while True:
+            item = self.get_nowait()
+            if item is not None:
+                return item
+            # drain the wake-up bytes, then look again: an item put after this look leaves a
+            # byte in the pipe, so the wait below returns at once
+            with self._lock, contextlib.suppress(BlockingIOError, OSError):
+                while not self._closed and os.read(self._read_fd, 4096):
+                    pass
+            item = self.get_nowait()
+            if item is not None:
+                return item
+            remaining = deadline - self.clock.monotonic()
+            if remaining <= 0:
+                return None
+            self.clock.wait_readable([self._read_fd], remaining)
+
+    def close(self) -> None:
+        with self._lock:
+            if not self._closed:
+                self._closed = True
+                os.close(self._read_fd)
+                os.close(self._write_fd)
 
 
 def _readable_now(fds: list[int]) -> bool:

@@ -21,7 +21,6 @@ from __future__ import annotations
 import json
 import logging
 import os
-import time
 from dataclasses import replace
 from typing import Any
 
@@ -29,6 +28,7 @@ from planner.outputs import atomic_write_text
 
 from . import mavlink_messages as mm
 from .camera_feed import CameraFeed
+from .clock import WALL_CLOCK, Clock
 from .errors import AcquisitionError
 from .link_quality import LinkCounts
 from .monitor_state import CameraEvent, MonitorState
@@ -62,7 +62,8 @@ class FlightRecorder:
 
     ``out_dir``: the recording folder (created); ``plan``: the planned stations (None: no
     progress against a plan); ``overwrite``: replace an existing recording (else
-    :class:`OutputExistsError`). Use it as a context manager, or call :meth:`close`.
+    :class:`OutputExistsError`); ``clock``: what its timers (stream freshness, heartbeat age,
+    fsync) run on. Use it as a context manager, or call :meth:`close`.
     Not thread-safe: one thread records.
     """
 
@@ -72,14 +73,16 @@ class FlightRecorder:
         plan: StationPlan | None = None,
         *,
         overwrite: bool = False,
+        clock: Clock = WALL_CLOCK,
     ) -> None:
-        self.files = RecordingFiles(out_dir, overwrite=overwrite)
+        self.clock = clock
+        self.files = RecordingFiles(out_dir, overwrite=overwrite, clock=clock)
         self.out_dir = self.files.folder
         self.tlog_path, self.csv_path, self.summary_path = recording_paths(self.out_dir)
         self.plan = plan
         self.tracker = StationTracker(plan) if plan is not None else None
         self.events: list[CameraEvent] = []
-        self.camera = CameraFeed(on_late_join=self._set_late_join)
+        self.camera = CameraFeed(on_late_join=self._set_late_join, clock=clock)
         self._link = LinkCounts()
         self.vehicle: tuple[int, int] | None = None
         self._last_heartbeat_wall_s: float | None = None
@@ -141,7 +144,7 @@ class FlightRecorder:
         if kind == "BAD_DATA":
             return None
         if rx_time_utc_s is None:
-            rx_time_utc_s = float(getattr(msg, "_timestamp", 0.0) or time.time())
+            rx_time_utc_s = float(getattr(msg, "_timestamp", 0.0) or self.clock.time())
         self.files.write_message(msg, rx_time_utc_s)
         self.messages += 1
         src = (int(msg.get_srcSystem()), int(msg.get_srcComponent()))
@@ -153,7 +156,7 @@ class FlightRecorder:
             return None  # another system (a second vehicle, another GCS): logged only
         from_autopilot = self.vehicle is None or src == self.vehicle
         if from_autopilot:
-            self.last_seen_s[kind] = time.monotonic()
+            self.last_seen_s[kind] = self.clock.monotonic()
         photo: CameraEvent | None = None
         if isinstance(m, mm.CameraImageCaptured):
             on_autopilot_clock = self.vehicle is None or src[1] == self.vehicle[1]
@@ -193,7 +196,7 @@ class FlightRecorder:
             log.info("recording vehicle system %d component %d", *src)
         if src != self.vehicle:
             return
-        self._last_heartbeat_wall_s = time.monotonic()
+        self._last_heartbeat_wall_s = self.clock.monotonic()
         armed = m.armed
         if not armed:
             self.camera.seen_disarmed = True
@@ -235,7 +238,7 @@ class FlightRecorder:
             return
         key = (m.total, m.mission_id or 0)
         if self._mission_key is not None and key != self._mission_key:
-            now = time.monotonic()
+            now = self.clock.monotonic()
             # an upload changes the total more than once (truncated, then complete): one change
             settled = self.mission_changed_at_s is None or now - self.mission_changed_at_s > MISSION_SETTLE_S
             self.mission_changes += 1 if settled else 0
@@ -325,7 +328,8 @@ class FlightRecorder:
         received = sum(q.received for q in link)
         expected = sum(q.expected for q in link)
         tracker = self.tracker
-        age = None if self._last_heartbeat_wall_s is None else time.monotonic() - self._last_heartbeat_wall_s
+        last = self._last_heartbeat_wall_s
+        age = None if last is None else self.clock.monotonic() - last
         events = len(self.events)
         photos, unseen, before = self.camera.photo_counts(events, self.joined_late)
         own = {name: getattr(self, name) for name in _STATE_ATTRIBUTES}

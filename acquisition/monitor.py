@@ -17,26 +17,32 @@ The parts, each a module of its own:
 - :mod:`acquisition.link_quality`: messages received and lost, from sequence numbers;
 - :mod:`acquisition.monitor_link`: the reader thread, the stream requests, the mission followed;
 - :mod:`acquisition.mavlink_messages`: the messages decoded into typed records.
+
+Every wait and timer runs on one clock (``clock``, :mod:`acquisition.clock`): the wall clock
+for users; in tests a :class:`~acquisition.clock.VirtualClock`, of which the monitor's thread,
+the link's reader and heartbeat threads and the mission reader are parties, so that simulated
+time moves only while all of them wait with nothing left to read. The receive times written to
+the tlog and the trigger CSV are the link's (:meth:`Link.open`'s ``on_message``): this
+computer's UTC on the wall clock, the virtual clock's UTC in tests.
 """
 
 from __future__ import annotations
 
 import logging
 import os
-import queue
 import threading
-import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from enum import StrEnum
 from pathlib import Path
 from typing import Any
 
+from .clock import WALL_CLOCK, Clock, ClockQueue
 from .errors import LinkError
 from .flight_recorder import FlightRecorder
 from .monitor_state import CameraEvent, MonitorState
 from .recording_files import CSV_NAME, TLOG_NAME, check_recording_target
-from .station_tracker import load_station_plan
+from .station_tracker import StationPlan, load_station_plan
 
 log = logging.getLogger(__name__)
 
@@ -76,6 +82,7 @@ def monitor(
     linger_s: float = 1.0,
     signing_key: bytes | None = None,
     require_signing: bool = False,
+    clock: Clock = WALL_CLOCK,
 ) -> MonitorResult:
     """Record the flight on ``url`` into ``out_dir`` until it ends (module docstring).
 
@@ -85,25 +92,52 @@ def monitor(
     ``reconnect_timeout_s``: after a drop, how long (wall s) to keep trying to reopen the
     link before giving up. ``heartbeat_timeout_s``: wait for the vehicle at the first
     connection (s). ``stop_when_landed``: end ``linger_s`` after the vehicle disarms following
-    a flight. ``signing_key`` / ``require_signing``: as :meth:`Link.open`.
+    a flight. ``signing_key`` / ``require_signing``: as :meth:`Link.open`. ``clock``: what
+    every wait and timer runs on (the seconds above are its seconds; module docstring).
 
     Ends on landing, the stop event or Ctrl-C with the files complete and returns a
     :class:`MonitorResult`. Raises :class:`LinkError` when the first connection fails (no
     file is written then) or when the link does not come back within ``reconnect_timeout_s``
     (the recording up to the drop is kept, and the message says where).
     """
-    from .link import Link
-    from .mission_stations import mission_station_plan
-    from .monitor_link import Dropped, LinkReader, MissionFollower, StreamRequests
-
     plan = load_station_plan(plan_dir) if plan_dir is not None else None
     check_recording_target(out_dir, overwrite=overwrite)
     if plan is not None:
         log.info("plan %s: %d stations", plan.name, len(plan))
+    party = clock.join()  # this thread takes part from the first connection to the end
+    try:
+        return _monitor(
+            url, plan, plan_dir, out_dir, on_update, stop_event, reconnect_timeout_s, heartbeat_timeout_s,
+            overwrite, update_interval_s, stop_when_landed, linger_s, signing_key, require_signing, clock,
+        )  # fmt: skip
+    finally:
+        clock.leave(party)
+
+
+def _monitor(
+    url: str,
+    plan: StationPlan | None,
+    plan_dir: str | os.PathLike[str] | None,
+    out_dir: str | os.PathLike[str],
+    on_update: Callable[[MonitorState], None] | None,
+    stop_event: threading.Event | None,
+    reconnect_timeout_s: float,
+    heartbeat_timeout_s: float,
+    overwrite: bool,
+    update_interval_s: float,
+    stop_when_landed: bool,
+    linger_s: float,
+    signing_key: bytes | None,
+    require_signing: bool,
+    clock: Clock,
+) -> MonitorResult:
+    from .link import Link
+    from .mission_stations import mission_station_plan
+    from .monitor_link import Dropped, LinkReader, MissionFollower, StreamRequests
 
     # Every message any read parses goes into this queue (from the reader thread, or from
     # Link.open while it waits for the heartbeat); the main loop records them in order.
-    inbox: queue.Queue[Any] = queue.Queue()
+    inbox = ClockQueue(clock)
 
     def observe(msg: Any, rx_time_utc_s: float) -> None:
         inbox.put((msg, rx_time_utc_s))
@@ -115,19 +149,25 @@ def monitor(
             signing_key=signing_key,
             require_signing=require_signing,
             on_message=observe,
+            clock=clock,
         )
 
-    first = open_link(heartbeat_timeout_s)
+    try:
+        first = open_link(heartbeat_timeout_s)
+    except BaseException:
+        inbox.close()
+        raise
     link: Link | None = first
     stop = stop_event if stop_event is not None else threading.Event()
     try:
-        recorder = FlightRecorder(out_dir, plan, overwrite=overwrite)
+        recorder = FlightRecorder(out_dir, plan, overwrite=overwrite, clock=clock)
     except BaseException:
         first.close()
+        inbox.close()
         raise
     recorder.set_vehicle(first.target_system, first.target_component)
-    requests = StreamRequests()
-    follower = MissionFollower(Path(plan_dir) if plan_dir is not None else None)
+    requests = StreamRequests(clock)
+    follower = MissionFollower(Path(plan_dir) if plan_dir is not None else None, clock)
     reader: LinkReader | None = None
     reason = StopReason.STOPPED
     last_update = 0.0
@@ -135,7 +175,7 @@ def monitor(
 
     def update(force: bool = False) -> None:
         nonlocal last_update
-        now = time.monotonic()
+        now = clock.monotonic()
         if on_update is not None and (force or now - last_update >= update_interval_s):
             last_update = now
             on_update(recorder.state())
@@ -145,7 +185,7 @@ def monitor(
             requests.ask(active)
         except LinkError as error:  # the reader will see the drop too
             log.debug("asking for streams failed: %s", error)
-        return LinkReader(active, inbox)
+        return LinkReader(active, inbox, clock)
 
     def apply_mission(items: list[Any], same_as_plan: bool) -> None:
         if same_as_plan:
@@ -174,17 +214,14 @@ def monitor(
                     break
                 if link is None:
                     link = _reconnect(
-                        open_link, recorder, stop, reconnect_timeout_s, heartbeat_timeout_s, update
+                        open_link, recorder, stop, reconnect_timeout_s, heartbeat_timeout_s, update, clock
                     )
                     if link is None:  # stopped while reconnecting
                         reason = StopReason.STOPPED
                         break
                     reader = start(link)
                     continue
-                try:
-                    item = inbox.get(timeout=0.1)
-                except queue.Empty:
-                    item = None
+                item = inbox.get(0.1)
                 handled = 0
                 while item is not None:
                     if isinstance(item, Dropped):
@@ -210,10 +247,7 @@ def monitor(
                     handled += 1
                     if handled >= 500:  # look at the clock now and then under a flood
                         break
-                    try:
-                        item = inbox.get_nowait()
-                    except queue.Empty:
-                        item = None
+                    item = inbox.get_nowait()
                 if link is None:
                     continue
                 missing = requests.check(recorder.last_seen_s)
@@ -225,9 +259,9 @@ def monitor(
                     apply_mission(*result)
                 if stop_when_landed and recorder.flight_over:
                     if landed_at is None:
-                        landed_at = time.monotonic()
+                        landed_at = clock.monotonic()
                         log.info("the vehicle has landed and disarmed; ending the recording")
-                    elif time.monotonic() - landed_at >= linger_s:
+                    elif clock.monotonic() - landed_at >= linger_s:
                         reason = StopReason.LANDED
                         break
                 else:
@@ -242,14 +276,11 @@ def monitor(
         if link is not None:
             link.close()
         # what was read but not yet recorded still goes into the files
-        while True:
-            try:
-                item = inbox.get_nowait()
-            except queue.Empty:
-                break
+        while (item := inbox.get_nowait()) is not None:
             if not isinstance(item, Dropped) and not recorder.closed:
                 recorder.record(*item)
         state = recorder.close()
+        inbox.close()
     if on_update is not None:
         on_update(state)
     return MonitorResult(
@@ -269,13 +300,14 @@ def _reconnect(
     timeout_s: float,
     heartbeat_timeout_s: float,
     update: Callable[[bool], None],
+    clock: Clock,
 ) -> Any | None:
     """Reopen the link until it works, ``stop`` is set (None) or ``timeout_s`` passes
     (:class:`LinkError` that says the recording is kept)."""
-    started = time.monotonic()
+    started = clock.monotonic()
     attempts = 0
     while not stop.is_set():
-        remaining = timeout_s - (time.monotonic() - started)
+        remaining = timeout_s - (clock.monotonic() - started)
         if remaining <= 0:
             break
         attempts += 1
@@ -285,13 +317,13 @@ def _reconnect(
         except LinkError as error:
             log.debug("reconnection attempt %d failed: %s", attempts, error)
             update(True)
-            stop.wait(min(0.5, max(remaining, 0.0)))
+            clock.wait_event(stop, min(0.5, max(remaining, 0.0)))
             continue
         recorder.set_vehicle(link.target_system, link.target_component)
         recorder.note_reconnect()
         log.warning(
             "reconnected after %.1f s (%d attempts); recording goes on in %s",
-            time.monotonic() - started,
+            clock.monotonic() - started,
             attempts,
             recorder.out_dir,
         )

@@ -23,14 +23,17 @@
   has been quiet for :data:`MISSION_QUIET_S`, in a worker thread fed by the main loop. When the
   mission read is the plan folder's own mission, the plan's stations stay; otherwise the
   stations become those of the vehicle's mission (:mod:`acquisition.mission_stations`).
+
+Every timer and wait here runs on one :class:`acquisition.clock.Clock` (the wall clock, or a
+:class:`~acquisition.clock.VirtualClock` in tests): the reader and the mission threads are
+parties of it, and they hand messages on through :class:`acquisition.clock.ClockQueue`, so that
+simulated time never moves while a message waits to be handled.
 """
 
 from __future__ import annotations
 
 import logging
-import queue
 import threading
-import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -38,6 +41,7 @@ from typing import Any
 from planner.mission import Autopilot, MissionItem
 
 from . import mavlink_messages as mm
+from .clock import WALL_CLOCK, Clock, ClockQueue
 from .errors import AcquisitionError, LinkError
 
 log = logging.getLogger(__name__)
@@ -80,29 +84,36 @@ class Dropped:
 
 class LinkReader:
     """Reads ``link`` in a daemon thread until it drops or :meth:`stop` (module docstring).
-    The messages reach the queue through the link's ``on_message`` observer."""
+    The messages reach the queue through the link's ``on_message`` observer. The thread is a
+    party of ``clock`` (the link's) from before it starts until it ends."""
 
-    def __init__(self, link: Any, out: queue.Queue[Any]) -> None:
+    def __init__(self, link: Any, out: ClockQueue, clock: Clock = WALL_CLOCK) -> None:
         self.link = link
         self.out = out
+        self.clock = clock
         self._stop = threading.Event()
         self.thread = threading.Thread(target=self._run, name="sfap-monitor-reader", daemon=True)
+        self._party = clock.join(self.thread)
         self.thread.start()
 
     def _run(self) -> None:
-        while not self._stop.is_set():
-            try:
-                self.link.recv(None, timeout_s=0.05, all_components=True)
-            except LinkError as error:
-                if not self._stop.is_set():
-                    self.out.put(Dropped(str(error)))
-                return
-            except Exception as error:  # an observer's own failure: report it as a drop
-                self.out.put(Dropped(f"{type(error).__name__}: {error}"))
-                return
+        try:
+            while not self._stop.is_set():
+                try:
+                    self.link.recv(None, timeout_s=0.05, all_components=True)
+                except LinkError as error:
+                    if not self._stop.is_set():
+                        self.out.put(Dropped(str(error)))
+                    return
+                except Exception as error:  # an observer's own failure: report it as a drop
+                    self.out.put(Dropped(f"{type(error).__name__}: {error}"))
+                    return
+        finally:
+            self.clock.leave(self._party)
 
     def stop(self) -> None:
         self._stop.set()
+        self.clock.interrupt()
         if self.thread is not threading.current_thread():
             self.thread.join(timeout=2.0)
 
@@ -110,7 +121,8 @@ class LinkReader:
 class StreamRequests:
     """Asks for :data:`WANTED_STREAMS` and checks that they come (module docstring)."""
 
-    def __init__(self) -> None:
+    def __init__(self, clock: Clock = WALL_CLOCK) -> None:
+        self.clock = clock
         self.link: Any = None
         self.asked_at = 0.0
         self._pending: list[tuple[str, float]] = []  # SET_MESSAGE_INTERVAL awaiting an ACK
@@ -121,7 +133,7 @@ class StreamRequests:
     def ask(self, link: Any) -> None:
         """Ask ``link``'s vehicle for every wanted stream (at every (re)connection)."""
         self.link = link
-        now = time.monotonic()
+        now = self.clock.monotonic()
         self.asked_at = now
         self._pending = []
         self._legacy_sent = set()
@@ -163,7 +175,7 @@ class StreamRequests:
         before the first check)."""
         if self.link is None:
             return None
-        now = time.monotonic()
+        now = self.clock.monotonic()
         late = [name for name, sent in self._pending if now - sent > ACK_TIMEOUT_S]
         if late:
             self._pending = [(n, t) for n, t in self._pending if n not in late]
@@ -213,17 +225,19 @@ def _consequences(missing: tuple[str, ...]) -> str:
 
 class MissionChannel:
     """A link for :func:`acquisition.transfer.download_mission` inside the monitor: it sends
-    on the real link and receives what the main loop hands it (:meth:`feed`)."""
+    on the real link and receives what the main loop hands it (:meth:`feed`); the transfer
+    measures its timeouts on ``clock``."""
 
-    def __init__(self, link: Any) -> None:
+    def __init__(self, link: Any, clock: Clock = WALL_CLOCK) -> None:
         self.link = link
+        self.clock = clock
         self.url = link.url
         self.autopilot: Autopilot = link.autopilot
         self.vehicle_type = link.vehicle_type
         self.target_system = link.target_system
         self.target_component = link.target_component
         self.source_system = getattr(link, "source_system", 255)
-        self._queue: queue.Queue[Any] = queue.Queue()
+        self._inbox = ClockQueue(clock)
 
     def wants(self, msg: Any) -> bool:
         if msg.get_type() not in _MISSION_TYPES or msg.get_srcSystem() != self.target_system:
@@ -231,22 +245,19 @@ class MissionChannel:
         return getattr(msg, "target_system", 0) in (0, self.source_system)
 
     def feed(self, msg: Any) -> None:
-        self._queue.put(msg)
+        self._inbox.put(msg)
+
+    def close(self) -> None:
+        self._inbox.close()
 
     def send(self, message: Any) -> None:
         self.link.send(message)
 
     def recv(self, types: Any = None, timeout_s: float = 0.0) -> Any | None:
-        deadline = time.monotonic() + timeout_s
+        deadline = self.clock.monotonic() + timeout_s
         while True:
-            remaining = deadline - time.monotonic()
-            try:
-                msg = (
-                    self._queue.get(timeout=max(remaining, 0.0))
-                    if remaining > 0
-                    else self._queue.get_nowait()
-                )
-            except queue.Empty:
+            msg = self._inbox.get(deadline - self.clock.monotonic())
+            if msg is None:
                 return None
             if types is None or msg.get_type() in types:
                 return msg
@@ -256,10 +267,13 @@ class MissionFollower:
     """Reads the vehicle's mission at the start and after each change (module docstring).
 
     ``plan_mission``: the plan folder's own mission (its ``mission.plan``), None when there is
-    none. :meth:`poll` returns, once per read, ``(items, same_as_plan)``.
+    none. :meth:`poll` returns, once per read, ``(items, same_as_plan)``. ``clock``: what its
+    timers run on; its reading thread is a party of it.
     """
 
-    def __init__(self, plan_dir: Path | None) -> None:
+    def __init__(self, plan_dir: Path | None, clock: Clock = WALL_CLOCK) -> None:
+        self.clock = clock
+        self._parties: dict[threading.Thread, object] = {}  # reading thread -> its clock party
         self.plan_items: list[MissionItem] | None = None
         if plan_dir is not None and (Path(plan_dir) / "mission.plan").is_file():
             try:
@@ -273,7 +287,7 @@ class MissionFollower:
         self.channel: MissionChannel | None = None
         self._thread: threading.Thread | None = None
         self._result: tuple[list[MissionItem], bool] | None = None
-        self._wanted_since: float | None = time.monotonic()  # read once at the start
+        self._wanted_since: float | None = self.clock.monotonic()  # read once at the start
         self._attempts = 0
         self._next_try_s = 0.0
         self.handled_change_at: float | None = None
@@ -295,7 +309,7 @@ class MissionFollower:
         self.mission_changed(changed_at_s)
         if link is None or self._wanted_since is None or self._thread is not None:
             return
-        now = time.monotonic()
+        now = self.clock.monotonic()
         if now - self._wanted_since < (MISSION_QUIET_S if self.reads or self._attempts else 0.0):
             return
         if now < self._next_try_s:
@@ -309,10 +323,11 @@ class MissionFollower:
             )
             return
         self._attempts += 1
-        self.channel = MissionChannel(link)
+        self.channel = MissionChannel(link, self.clock)
         self._thread = threading.Thread(
             target=self._read, args=(self.channel,), daemon=True, name="sfap-monitor-mission"
         )
+        self._parties[self._thread] = self.clock.join(self._thread)  # a party from before it starts
         self._thread.start()
 
     def _read(self, channel: MissionChannel) -> None:
@@ -332,10 +347,12 @@ class MissionFollower:
             self._result = (list(body), same)
         except (AcquisitionError, LinkError) as error:
             log.info("reading the vehicle's mission failed (%s); trying again", error)
-            self._next_try_s = time.monotonic() + MISSION_RETRY_S
+            self._next_try_s = self.clock.monotonic() + MISSION_RETRY_S
         finally:
             self.channel = None
+            channel.close()
             self._thread = None
+            self.clock.leave(self._parties.pop(threading.current_thread()))
 
     def poll(self) -> tuple[list[MissionItem], bool] | None:
         result, self._result = self._result, None

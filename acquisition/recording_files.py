@@ -18,13 +18,13 @@ import io
 import math
 import os
 import struct
-import time
 from collections.abc import Sequence
 from pathlib import Path
 from typing import IO, Any
 
 from planner.errors import OutputExistsError
 
+from .clock import WALL_CLOCK, Clock
 from .monitor_state import CameraEvent
 
 TLOG_NAME = "flight.tlog"
@@ -78,7 +78,10 @@ class RecordingFiles:
     """The open tlog and trigger CSV of a recording folder (created; checked with
     :func:`check_recording_target`); a stale ``monitor.json`` is removed."""
 
-    def __init__(self, out_dir: str | os.PathLike[str], *, overwrite: bool) -> None:
+    def __init__(
+        self, out_dir: str | os.PathLike[str], *, overwrite: bool, clock: Clock = WALL_CLOCK
+    ) -> None:
+        self.clock = clock
         folder = check_recording_target(out_dir, overwrite=overwrite)
         folder.mkdir(parents=True, exist_ok=True)
         self.folder = folder
@@ -88,7 +91,7 @@ class RecordingFiles:
         self._tlog: IO[bytes] | None = open(self.tlog_path, "wb")  # noqa: SIM115 - close()
         self._csv: IO[str] | None = open(self.csv_path, "w", encoding="utf-8", newline="")  # noqa: SIM115
         self._write_csv_row(CSV_COLUMNS)
-        self._last_fsync_s = time.monotonic()
+        self._last_fsync_s = self.clock.monotonic()
 
     def write_message(self, msg: Any, rx_time_utc_s: float) -> None:
         """One tlog record: the receive time, then the packet."""
@@ -97,7 +100,7 @@ class RecordingFiles:
         stamp = struct.pack(">Q", max(round(rx_time_utc_s * 1e6), 0))
         self._tlog.write(stamp + bytes(data))  # one write: a record is whole or absent
         self._tlog.flush()
-        now = time.monotonic()
+        now = self.clock.monotonic()
         if now - self._last_fsync_s >= FSYNC_INTERVAL_S:
             os.fsync(self._tlog.fileno())
             self._last_fsync_s = now
@@ -126,7 +129,7 @@ class RecordingFiles:
         if self._tlog is not None:
             self._tlog.flush()
             os.fsync(self._tlog.fileno())
-            self._last_fsync_s = time.monotonic()
+            self._last_fsync_s = self.clock.monotonic()
 
     def _write_csv_row(self, row: Sequence[str]) -> None:
         assert self._csv is not None

@@ -1,6 +1,12 @@
 """The in-flight monitor: FlightRecorder on synthetic MAVLink messages (dedup, link quality,
 missed stations, durable files), then real flights of planned missions in the simulator,
-one of them through a link that is cut and restored."""
+one of them through a link that is cut and restored.
+
+The flights run on simulated time (a :class:`VirtualClock` shared by the simulated vehicle, the
+monitor and the test's own waits) except the one through a relay (its thread is no party of the
+clock), which stays on the wall clock as the real-time flight case. On the virtual clock the
+receive times in the files are the clock's UTC (its start is the wall clock's now), and every
+wait of a test (``wait_until``) is in simulated seconds, bounded by wall seconds too."""
 
 from __future__ import annotations
 
@@ -24,6 +30,8 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 from pyproj import Geod
 from tcp_relay import Relay
 
+from acquisition.clock import WALL_CLOCK, Clock, ClockQueue, VirtualClock
+from acquisition.errors import LinkError
 from acquisition.flight_recorder import FlightRecorder
 from acquisition.link import Link
 from acquisition.link_quality import SeqCounter
@@ -479,9 +487,21 @@ def planned_small(tmp_path: Path) -> tuple[Path, SurveyPlan]:
     return tmp_path / "plan", plan
 
 
-def gcs_start_mission(url: str) -> None:
+def wait_until(condition: Any, timeout_s: float, clock: Clock = WALL_CLOCK) -> bool:
+    """Look at ``condition()`` every 0.01 s of ``clock`` until it holds (True) or ``timeout_s``
+    of ``clock`` passed; on a virtual clock also at most ``timeout_s`` + 60 wall seconds."""
+    deadline = clock.monotonic() + timeout_s
+    wall_deadline = time.monotonic() + timeout_s + 60.0
+    while not condition():
+        if clock.monotonic() >= deadline or time.monotonic() >= wall_deadline:
+            return bool(condition())
+        clock.sleep(0.01)
+    return True
+
+
+def gcs_start_mission(url: str, clock: Clock = WALL_CLOCK) -> None:
     """Arm and start the mission with COMMAND_LONG, as a ground station does."""
-    with Link.open(url, heartbeat_timeout_s=5.0, source_component=191) as link:
+    with Link.open(url, heartbeat_timeout_s=5.0, source_component=191, clock=clock) as link:
         for command, params in ((400, (1.0,)), (300, ())):
             padded = list(params) + [0.0] * (7 - len(params))
             link.send(
@@ -500,9 +520,17 @@ def run_monitor() -> Iterator[Any]:
     threads: list[threading.Thread] = []
     stops: list[threading.Event] = []
 
-    def start(url: str, plan_dir: Path, out_dir: Path, clock: Any = None, **kw: Any) -> dict[str, Any]:
+    def start(
+        url: str,
+        plan_dir: Path,
+        out_dir: Path,
+        clock: Any = None,
+        vclock: VirtualClock | None = None,
+        **kw: Any,
+    ) -> dict[str, Any]:
         """Run monitor() in a thread; ``box["states"]`` collects the updates, each with the
-        time ``clock()`` (e.g. the simulator's) gave when it came."""
+        time ``clock()`` (e.g. the simulator's) gave when it came. ``vclock``: the monitor
+        runs on that virtual clock (and the test waits on it)."""
         box: dict[str, Any] = {"states": [], "clocked": [], "connected": threading.Event()}
         stop = threading.Event()
 
@@ -515,10 +543,10 @@ def run_monitor() -> Iterator[Any]:
 
         def body() -> None:
             try:
-                box["result"] = monitor(
-                    url, plan_dir, out_dir, on_update=on_update, stop_event=stop,
-                    update_interval_s=0.05, **kw,
-                )  # fmt: skip
+                if vclock is not None:
+                    kw["clock"] = vclock
+                kw.setdefault("update_interval_s", 0.05)
+                box["result"] = monitor(url, plan_dir, out_dir, on_update=on_update, stop_event=stop, **kw)
             except BaseException as error:  # handed to the test
                 box["error"] = error
 
@@ -527,12 +555,19 @@ def run_monitor() -> Iterator[Any]:
         threads.append(thread)
         stops.append(stop)
         box["thread"] = thread
-        assert box["connected"].wait(15), box.get("error")
+        if vclock is None:
+            assert box["connected"].wait(15), box.get("error")
+        else:
+            vclocks.append(vclock)
+            assert wait_until(box["connected"].is_set, 15, vclock), box.get("error")
         return box
 
+    vclocks: list[VirtualClock] = []
     yield start
     for stop in stops:
         stop.set()
+    for vclock in vclocks:
+        vclock.interrupt()
     for thread in threads:
         thread.join(timeout=10)
 
@@ -541,14 +576,17 @@ def run_monitor() -> Iterator[Any]:
 def test_gully_flight_records_one_event_per_planned_station(tmp_path: Path, run_monitor: Any) -> None:
     plan_dir, plan = planned_gully(tmp_path)
     d = plan.summary.trigger_distance_m
-    with SimulatedVehicle(speedup=100, home=plan.mission.home, boot_delay_s=0.0, gps_fix_s=0.5) as vehicle:
+    clock = VirtualClock()
+    with SimulatedVehicle(
+        speedup=100, home=plan.mission.home, boot_delay_s=0.0, gps_fix_s=0.5, clock=clock
+    ) as vehicle:
         url = vehicle.url_for_client
-        with Link.open(url, heartbeat_timeout_s=5.0, source_component=191) as link:
+        with Link.open(url, heartbeat_timeout_s=5.0, source_component=191, clock=clock) as link:
             assert vehicle.wait_sim_time(0.6)
             upload_mission(link, plan.mission)
-        box = run_monitor(url, plan_dir, tmp_path / "flight")
-        gcs_start_mission(url)
-        box["thread"].join(timeout=60)
+        box = run_monitor(url, plan_dir, tmp_path / "flight", vclock=clock)
+        gcs_start_mission(url, clock)
+        wait_until(lambda: not box["thread"].is_alive(), 60, clock)
         assert not box["thread"].is_alive() and "error" not in box, box.get("error")
         shots = list(vehicle.flight.shots)
     result: MonitorResult = box["result"]
@@ -651,13 +689,14 @@ def test_link_drop_mid_flight_is_survived_and_the_recording_kept(
 def test_px4_flight_counts_each_photo_once_from_trigger_and_capture(tmp_path: Path, run_monitor: Any) -> None:
     plan_dir, plan = planned_small(tmp_path)
     n = len(plan.stations)
+    clock = VirtualClock()
     with SimulatedVehicle(
-        autopilot=Autopilot.PX4, speedup=100, home=plan.mission.home, gps_fix_s=0.0
+        autopilot=Autopilot.PX4, speedup=100, home=plan.mission.home, gps_fix_s=0.0, clock=clock
     ) as vehicle:
         vehicle.load_mission(plan.mission.items)
-        box = run_monitor(vehicle.url_for_client, plan_dir, tmp_path / "flight")
+        box = run_monitor(vehicle.url_for_client, plan_dir, tmp_path / "flight", vclock=clock)
         vehicle.auto_start()
-        box["thread"].join(timeout=60)
+        wait_until(lambda: not box["thread"].is_alive(), 60, clock)
         assert not box["thread"].is_alive() and "error" not in box, box.get("error")
         sent = dict(vehicle.sent_counts)
     assert sent["CAMERA_TRIGGER"] == sent["CAMERA_IMAGE_CAPTURED"] == n
@@ -984,13 +1023,14 @@ def test_monitor_asks_ardupilot_for_its_streams_and_stops_after_landing(
     from planner.mission import HomePosition
 
     home = HomePosition(lat_deg=LAT0, lon_deg=LON0)
-    with SimulatedVehicle(speedup=60, home=home, boot_delay_s=0.0, gps_fix_s=0.2) as vehicle:
+    clock = VirtualClock()
+    with SimulatedVehicle(speedup=60, home=home, boot_delay_s=0.0, gps_fix_s=0.2, clock=clock) as vehicle:
         assert vehicle.streams_on_request  # ArduPilot's flavour: nothing periodic until asked
         vehicle.load_mission(short_line())
         url = vehicle.url_for_client
-        box = run_monitor(url, None, tmp_path / "flight")
-        gcs_start_mission(url)
-        box["thread"].join(timeout=60)
+        box = run_monitor(url, None, tmp_path / "flight", vclock=clock)
+        gcs_start_mission(url, clock)
+        wait_until(lambda: not box["thread"].is_alive(), 60, clock)
         assert not box["thread"].is_alive() and "error" not in box, box.get("error")
         shots = list(vehicle.flight.shots)
         rates = vehicle.flight.stream_rates_hz()
@@ -1051,17 +1091,16 @@ def test_a_monitor_started_mid_flight_says_so_and_misses_nothing(tmp_path: Path,
     from planner.mission import HomePosition
 
     home = HomePosition(lat_deg=LAT0, lon_deg=LON0)
+    clock = VirtualClock()
     with SimulatedVehicle(
-        speedup=15, home=home, boot_delay_s=0.0, gps_fix_s=0.2, streams_on_request=False
+        speedup=15, home=home, boot_delay_s=0.0, gps_fix_s=0.2, streams_on_request=False, clock=clock
     ) as vehicle:
         vehicle.load_mission(short_line(east_m=100.0))
         assert vehicle.wait_sim_time(0.3)  # a GPS fix, or no arming
-        gcs_start_mission(vehicle.url_for_client)
-        deadline = time.monotonic() + 30
-        while len(vehicle.flight.shots) < 3 and time.monotonic() < deadline:
-            time.sleep(0.01)
-        box = run_monitor(vehicle.url_for_client, None, tmp_path / "flight")
-        box["thread"].join(timeout=60)
+        gcs_start_mission(vehicle.url_for_client, clock)
+        wait_until(lambda: len(vehicle.flight.shots) >= 3, 30, clock)
+        box = run_monitor(vehicle.url_for_client, None, tmp_path / "flight", vclock=clock)
+        wait_until(lambda: not box["thread"].is_alive(), 60, clock)
         assert not box["thread"].is_alive() and "error" not in box, box.get("error")
         shots = list(vehicle.flight.shots)
     state: MonitorState = box["result"].state
@@ -1079,22 +1118,104 @@ def test_a_new_mission_uploaded_in_the_field_is_followed(tmp_path: Path, run_mon
     home = HomePosition(lat_deg=LAT0, lon_deg=LON0)
     first, refly = short_line(east_m=40.0), short_line(east_m=80.0, north_m=30.0)
     refly.insert(1, refly[1])  # another item count: MISSION_CURRENT's total changes
-    with SimulatedVehicle(speedup=30, home=home, boot_delay_s=0.0, gps_fix_s=0.2) as vehicle:
+    clock = VirtualClock()
+    with SimulatedVehicle(speedup=30, home=home, boot_delay_s=0.0, gps_fix_s=0.2, clock=clock) as vehicle:
         vehicle.load_mission(first)
         url = vehicle.url_for_client
-        box = run_monitor(url, None, tmp_path / "flight", stop_when_landed=False)
-        deadline = time.monotonic() + 15
-        while time.monotonic() < deadline and not (box["states"] and box["states"][-1].photos_planned == 5):
-            time.sleep(0.05)
+        box = run_monitor(url, None, tmp_path / "flight", stop_when_landed=False, vclock=clock)
+        wait_until(lambda: bool(box["states"]) and box["states"][-1].photos_planned == 5, 15, clock)
         assert box["states"][-1].photos_planned == 5  # the first mission: 40 m / 10 m + 1
-        with Link.open(url, heartbeat_timeout_s=5.0, source_component=191) as link:
+        with Link.open(url, heartbeat_timeout_s=5.0, source_component=191, clock=clock) as link:
             upload_mission(link, Mission(items=tuple(refly), home=home, autopilot=Autopilot.ARDUPILOT))
-        gcs_start_mission(url)
+        gcs_start_mission(url, clock)
         assert vehicle.wait_landed(60)
-        time.sleep(1.5)
+        clock.sleep(1.5)
         shots = len(vehicle.flight.shots)
         states = box["states"]
     assert shots == 9
     last = states[-1]
     assert last.mission_changes >= 1 and last.stations_from == "vehicle"
     assert last.photos_planned == 9 and last.stations_taken == 9 and last.missed_stations == ()
+
+
+# --- the monitor's timers on simulated time -------------------------------------------------------
+
+
+def test_an_item_put_in_a_clock_queue_wakes_its_taker_at_that_simulated_instant() -> None:
+    clock = VirtualClock()
+    inbox = ClockQueue(clock)
+    start = clock.monotonic()
+    party = clock.join()
+
+    def putter() -> None:
+        try:
+            clock.sleep(3.0)
+            inbox.put("photo")
+            clock.sleep(1.0)  # time may move on only once the item is taken
+        finally:
+            clock.leave(token)
+
+    thread = threading.Thread(target=putter, daemon=True)
+    token = clock.join(thread)
+    thread.start()
+    try:
+        assert inbox.get(10.0) == "photo"
+        assert clock.monotonic() - start == pytest.approx(3.0, abs=1e-9)
+        assert inbox.get(0.5) is None  # nothing else: the wait runs out at its simulated second
+        assert clock.monotonic() - start == pytest.approx(3.5, abs=1e-9)
+    finally:
+        clock.leave(party)
+        thread.join(timeout=5)
+        inbox.close()
+
+
+def test_the_monitor_lingers_its_simulated_seconds_after_the_landing(
+    tmp_path: Path, run_monitor: Any
+) -> None:
+    from planner.mission import HomePosition
+
+    linger_s = 2.5
+    clock = VirtualClock()
+    home = HomePosition(lat_deg=LAT0, lon_deg=LON0)
+    with SimulatedVehicle(speedup=60, home=home, boot_delay_s=0.0, gps_fix_s=0.2, clock=clock) as vehicle:
+        vehicle.load_mission(short_line())
+        url = vehicle.url_for_client
+        box = run_monitor(
+            url, None, tmp_path / "flight", vclock=clock, clock=clock.monotonic, linger_s=linger_s,
+            update_interval_s=0.0,  # an update at every turn of the loop, at the clock's reading then
+        )  # fmt: skip
+        gcs_start_mission(url, clock)
+        wait_until(lambda: not box["thread"].is_alive(), 60, clock)
+        assert not box["thread"].is_alive() and "error" not in box, box.get("error")
+    assert box["result"].reason is StopReason.LANDED
+    clocked = box["clocked"]
+    landed_seen_s = min(t for t, st in clocked if st.flight_over)  # the turn that saw the landing
+    ended_s = clocked[-1][0]  # the last update, as the recording closed
+    # it ends at the first turn of the loop after linger_s: the loop turns at least every 0.1 s
+    assert linger_s <= ended_s - landed_seen_s <= linger_s + 0.1 + 1e-6
+
+
+def test_the_reconnection_gives_up_after_its_simulated_timeout(tmp_path: Path, run_monitor: Any) -> None:
+    from planner.mission import HomePosition
+
+    timeout_s = 7.3
+    clock = VirtualClock()
+    home = HomePosition(lat_deg=LAT0, lon_deg=LON0)
+    with SimulatedVehicle(speedup=10, home=home, boot_delay_s=0.0, gps_fix_s=0.2, clock=clock) as vehicle:
+        box = run_monitor(
+            vehicle.url_for_client, None, tmp_path / "flight", vclock=clock, clock=clock.monotonic,
+            reconnect_timeout_s=timeout_s,
+        )  # fmt: skip
+        assert vehicle.wait_sim_time(1.0)
+    # the vehicle is gone (its port refuses): the monitor tries again until its timeout; then
+    # nobody waits on the clock any more, so it stands at the second the monitor gave up
+    box["thread"].join(timeout=60)
+    assert not box["thread"].is_alive()
+    gave_up_s = clock.monotonic()
+    error = box.get("error")
+    assert isinstance(error, LinkError) and f"within {timeout_s:g} s" in str(error)
+    dropped_s = min(t for t, st in box["clocked"] if not st.connected)
+    # each attempt waits at least 0.5 s (a refused port is tried every 0.2 s, then 0.5 s pause),
+    # so the last one may end up to 0.5 s past the timeout, never before it
+    assert timeout_s <= gave_up_s - dropped_s <= timeout_s + 0.5 + 1e-6
+    assert (tmp_path / "flight" / "flight.tlog").stat().st_size > 0  # the recording is kept
