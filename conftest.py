@@ -28,3 +28,37 @@ for _package_name in ("planner", "acquisition", "processing", "sfap"):
             and all((_ROOT.joinpath(*_parts[:k]) / "__init__.py").is_file() for k in range(1, len(_parts)))
         ):
             importlib.import_module(".".join(_parts))
+
+
+# ------------------------------------------------------------------ plans shared by several tests
+import json as _json  # noqa: E402
+import os as _os  # noqa: E402
+
+import pytest  # noqa: E402
+
+QUARRY_SORTIES_SPEC = _ROOT / "missions" / "quarry-block-sorties.toml"
+
+
+@pytest.fixture(scope="session")
+def quarry_sorties_cli(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, int, str, str]:
+    """`sfap plan missions/quarry-block-sorties.toml -o OUT --json` run once for the whole run:
+    (OUT, exit code, stdout, output). Several tests read the 31 folders it writes (about 9 s of CPU, most
+    of it the maps); none may modify them. Under pytest-xdist the first worker to ask runs it and
+    the others wait on a lock and read its output (the xdist way of sharing a session fixture)."""
+    import fcntl
+
+    from click.testing import CliRunner
+
+    from sfap.cli import cli
+
+    shared = tmp_path_factory.getbasetemp()
+    if _os.environ.get("PYTEST_XDIST_WORKER"):
+        shared = shared.parent  # the run's directory, common to every worker
+    out, done = shared / "quarry-block-sorties", shared / "quarry-block-sorties.json"
+    with open(shared / "quarry-block-sorties.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not done.exists():
+            result = CliRunner().invoke(cli, ["plan", str(QUARRY_SORTIES_SPEC), "-o", str(out), "--json"])
+            done.write_text(_json.dumps([result.exit_code, result.stdout, result.output]))
+    exit_code, stdout, output = _json.loads(done.read_text())
+    return out, exit_code, stdout, output

@@ -836,12 +836,9 @@ def test_pycolmap_creates_a_position_prior_for_every_tagged_frame(
     images.mkdir()
     for p in (tmp_path / "out").glob("*.JPG"):
         shutil.copy(p, images / p.name)
-    options = pycolmap.FeatureExtractionOptions()
-    options.max_image_size = 640
-    options.sift.max_num_features = 256
-    options.use_gpu = False
     database = tmp_path / "db.db"
-    pycolmap.extract_features(database, images, extraction_options=options, device=pycolmap.Device.cpu)
+    pycolmap.Database.open(database).close()  # an empty database
+    pycolmap.import_images(database, images)
     db = pycolmap.Database.open(database)
     try:
         priors = db.read_all_pose_priors()

@@ -46,11 +46,10 @@ def test_multiscale_example_flies_as_sorties_of_one_height_each(tmp_path: Path) 
 
 
 @pytest.mark.slow
-def test_quarry_flies_as_sorties_of_one_battery(tmp_path: Path) -> None:
-    out = tmp_path / "q"
-    result = CliRunner().invoke(cli, ["plan", str(QUARRY_SORTIES), "-o", str(out), "--json"])
-    assert result.exit_code == 0, result.output
-    sorties = json.loads(result.stdout)["sorties"]
+def test_quarry_flies_as_sorties_of_one_battery(quarry_sorties_cli: tuple[Path, int, str, str]) -> None:
+    _, exit_code, stdout, output = quarry_sorties_cli  # `sfap plan` of QUARRY_SORTIES, --json
+    assert exit_code == 0, output
+    sorties = json.loads(stdout)["sorties"]
     assert sorties["usable_flight_s"] == pytest.approx(1800.0)
     assert all(s["flight_time_s"] <= 1800.0 for s in sorties["list"])
     assert all(s["item_count"] + 1 <= 650 for s in sorties["list"])

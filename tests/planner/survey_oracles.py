@@ -319,13 +319,13 @@ def check_plan(plan: SurveyPlan, front_pct: float, side_pct: float, clearance_m:
     # 3. along each camera-on run the stations are at most an air base apart
     for p in plan.passes:
         mask = np.flatnonzero(stations.pass_index == p.index)
-        xy = np.column_stack([stations.x_m[mask], stations.y_m[mask]])
+        pass_points = shapely.points(np.column_stack([stations.x_m[mask], stations.y_m[mask]]))
         base = p.trigger_distance_m
         for line_obj in p.lines:
             run = LineString([line_obj.start_xy_m, line_obj.end_xy_m])
-            on = shapely.distance(run, shapely.points(xy)) < 1e-3
+            on = shapely.distance(run, pass_points) < 1e-3
             assert on.any(), "a camera-on run with no station"
-            along = np.sort(shapely.line_locate_point(run, shapely.points(xy[on])))
+            along = np.sort(shapely.line_locate_point(run, pass_points[on]))
             assert np.all(np.diff(along) <= base + 1e-6)
             assert run.length > 0, "a zero-length camera-on line"
 

@@ -114,16 +114,19 @@ def test_the_stations_and_the_area_read_back_within_the_files_rounding(
     assert len(read.exclusions_lonlat) == len(plan.exclusions_lonlat)
 
 
-def test_a_sortie_plan_keeps_its_sorties_section(tmp_path: Path) -> None:
-    from planner.sorties import split_sorties, write_with_sorties
+def test_a_sortie_plan_keeps_its_sorties_section(quarry_sorties_cli: tuple[Path, int, str, str]) -> None:
+    from planner.sorties import split_sorties
 
+    # The folder `sfap plan` wrote for this spec (write_with_sorties, shared with the CLI's tests),
+    # read back against the plan and sorties planned here.
+    folder, exit_code, _, output = quarry_sorties_cli
+    assert exit_code == 0, output
     plan = plan_survey(load_spec(MISSIONS / "quarry-block-sorties.toml"))
     sorties = split_sorties(plan)
-    write_with_sorties(plan, sorties, tmp_path / "out")
-    read = read_plan_folder(tmp_path / "out")
+    read = read_plan_folder(folder)
     assert read.summary == plan.summary
     assert read.extra["sorties"]["count"] == len(sorties) > 1
-    first = read_plan_folder(next(p for p in sorted((tmp_path / "out").iterdir()) if p.is_dir()))
+    first = read_plan_folder(next(p for p in sorted(folder.iterdir()) if p.is_dir()))
     assert first.summary == sorties[0].plan.summary
 
 
