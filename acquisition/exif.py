@@ -37,7 +37,6 @@ import math
 import os
 import re
 import struct
-import tempfile
 from collections.abc import Callable, Iterable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -47,6 +46,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from planner.errors import OutputExistsError
+from planner.outputs import atomic_file, process_umask
 
 from . import jpeg_meta
 from .errors import GeotagError
@@ -862,21 +862,9 @@ def _write_file(
         if header is None:
             header = _compose_header(split, name, change)
         if atomic or same:
-            if not (overwrite or same) and target.exists():
-                raise OutputExistsError(f"{target} exists; pass --overwrite to replace it")
-            target.parent.mkdir(parents=True, exist_ok=True)
-            out_fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
-            try:
-                with os.fdopen(out_fd, "wb", buffering=0) as out:
-                    out.write(header)
-                    _copy_range(fd, out.fileno(), split.sos_offset, size - split.sos_offset)
-                    os.fsync(out.fileno())
-                os.chmod(tmp_name, 0o666 & ~_umask())
-                os.replace(tmp_name, target)
-            except BaseException:
-                with contextlib.suppress(FileNotFoundError):
-                    os.unlink(tmp_name)
-                raise
+            with atomic_file(target, overwrite=overwrite or same, buffering=0) as out:
+                out.write(header)
+                _copy_range(fd, out.fileno(), split.sos_offset, size - split.sos_offset)
         else:
             created = False
             try:
@@ -901,18 +889,6 @@ def _write_file(
     for text in warnings:
         log.warning("%s", text)
     return target, warnings
-
-
-_UMASK: int | None = None
-
-
-def _umask() -> int:
-    global _UMASK
-    if _UMASK is None:
-        mask = os.umask(0)
-        os.umask(mask)
-        _UMASK = mask
-    return _UMASK
 
 
 def write_geotag(
@@ -1002,7 +978,7 @@ def write_geotags(
         workers = min(4, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else 1)
     if workers < 1:
         raise GeotagError(f"workers is {workers}; give 1 or more")
-    _umask()  # read (it is set and reset) before any thread creates a file
+    process_umask()  # read (it is set and reset) before any thread creates a file
     results: list[GeotagWriteResult] = []
     if workers == 1 or len(job_list) < 2:
         for n, job in enumerate(job_list, start=1):

@@ -1,7 +1,7 @@
 """Writing outputs without ever leaving a half-written file or folder behind.
 
-- :func:`atomic_write_bytes` / :func:`atomic_write_text`: one file, via a temporary file in
-  the same folder and ``os.replace``.
+- :func:`atomic_file` (a file written in a with-block), :func:`atomic_write_bytes` /
+  :func:`atomic_write_text`: one file, via a temporary file in the same folder and ``os.replace``.
 - :func:`staged_output_dir`: a whole output folder, built in a temporary sibling folder and
   moved into place only when everything in it was written.
 - :func:`json_safe`: a value made fit for strict JSON (every JSON file and ``--json`` output).
@@ -19,36 +19,52 @@ import sys
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
 from .errors import OutputExistsError
 
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
+_UMASK: int | None = None
 
 
-def atomic_write_bytes(path: str | os.PathLike[str], data: bytes, *, overwrite: bool = True) -> Path:
-    """Write ``data`` to ``path`` atomically (temporary file in the same folder, then rename)."""
-    target = Path(path)
+def process_umask() -> int:
+    """The process's umask, read once (reading it sets and resets it, which is not safe while
+    other threads create files: call it before starting them)."""
+    global _UMASK
+    if _UMASK is None:
+        mask = os.umask(0)
+        os.umask(mask)
+        _UMASK = mask
+    return _UMASK
+
+
+@contextlib.contextmanager
+def atomic_file(target: Path, *, overwrite: bool, buffering: int = -1) -> Iterator[BinaryIO]:
+    """A binary file that replaces ``target`` only when the block ends without error: written to
+    a temporary file in the same folder, synced, given the permissions a plain open() would, then
+    renamed over ``target``; on any error the temporary file is removed and ``target`` untouched."""
     if not overwrite and target.exists():
         raise OutputExistsError(f"{target} exists; pass --overwrite to replace it")
     target.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
     try:
-        with os.fdopen(fd, "wb") as handle:
-            handle.write(data)
+        with os.fdopen(fd, "wb", buffering=buffering) as handle:
+            yield handle
             handle.flush()
             os.fsync(handle.fileno())
         # mkstemp creates 0600; give the file the permissions a plain open() would.
-        os.chmod(tmp_name, 0o666 & ~_umask())
+        os.chmod(tmp_name, 0o666 & ~process_umask())
         os.replace(tmp_name, target)
     except BaseException:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp_name)
         raise
+
+
+def atomic_write_bytes(path: str | os.PathLike[str], data: bytes, *, overwrite: bool = True) -> Path:
+    """Write ``data`` to ``path`` atomically (temporary file in the same folder, then rename)."""
+    target = Path(path)
+    with atomic_file(target, overwrite=overwrite) as handle:
+        handle.write(data)
     return target
 
 
@@ -81,7 +97,7 @@ def staged_output_dir(target: str | os.PathLike[str], *, overwrite: bool = False
     final = check_output_dir(target, overwrite=overwrite).resolve()
     final.parent.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=f".{final.name}.", suffix=".staging", dir=final.parent))
-    os.chmod(staging, 0o777 & ~_umask())
+    os.chmod(staging, 0o777 & ~process_umask())
     try:
         yield staging
     except BaseException:

@@ -5,13 +5,18 @@ from __future__ import annotations
 
 import json
 import math
+import os
+import stat
+from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from planner.outputs import json_safe
+from planner.errors import OutputExistsError
+from planner.outputs import atomic_file, json_safe
 
 
 def _leaf() -> st.SearchStrategy[tuple[Any, Any]]:
@@ -52,3 +57,37 @@ def test_json_safe_gives_what_strict_json_holds(pair: tuple[Any, Any]) -> None:
     raw, want = pair
     text = json.dumps(json_safe(raw), allow_nan=False)  # strict JSON: raises on NaN or numpy
     assert json.loads(text) == json.loads(json.dumps(want, allow_nan=False))
+
+
+def test_atomic_file_replaces_the_target_only_when_the_block_ends(tmp_path: Path) -> None:
+    """An error inside the block leaves the old file as it was and no temporary file; a clean
+    block replaces it whole, with the permissions a plain open() gives (the umask's)."""
+    target = tmp_path / "out.bin"
+    target.write_bytes(b"old")
+    with pytest.raises(RuntimeError), atomic_file(target, overwrite=True) as handle:
+        handle.write(b"half of the new")
+        raise RuntimeError("the card was pulled")
+    assert target.read_bytes() == b"old"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out.bin"]
+
+    with atomic_file(target, overwrite=True) as handle:
+        handle.write(b"new")
+    assert target.read_bytes() == b"new"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out.bin"]
+    mask = os.umask(0)
+    os.umask(mask)
+    plain = tmp_path / "plain.bin"
+    plain.write_bytes(b"")
+    assert stat.S_IMODE(target.stat().st_mode) == stat.S_IMODE(plain.stat().st_mode) == 0o666 & ~mask
+
+
+def test_atomic_file_refuses_an_existing_target_without_overwrite(tmp_path: Path) -> None:
+    target = tmp_path / "out.bin"
+    target.write_bytes(b"keep")
+    with (
+        pytest.raises(OutputExistsError, match="--overwrite"),
+        atomic_file(target, overwrite=False) as handle,
+    ):
+        handle.write(b"lost")
+    assert target.read_bytes() == b"keep"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out.bin"]
