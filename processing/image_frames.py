@@ -88,20 +88,28 @@ def read_image_frames(
     damaged is read like any other (only its metadata is needed). Raises FramesError when no
     image has a real position.
     """
+    tags, extras = read_folder_tags(folder, progress=progress)
+    return frames_from_tags(
+        tags, camera=camera, fallback_camera=fallback_camera, where=str(folder), camera_tags=extras
+    )
+
+
+def read_folder_tags(
+    folder: str | os.PathLike[str], *, progress: Callable[[int], None] | None = None
+) -> tuple[list[ImageTags], list[CameraTags]]:
+    """The tags and camera tags of every JPEG in ``folder`` (:func:`image_paths`' order), each
+    file's header read once; ``progress(1)`` after each image (the check and the hand-off)."""
     from acquisition.exif import read_tags_and_camera  # pyexiv2 is only needed for images
 
-    paths = image_paths(folder)
     tags: list[ImageTags] = []
     extras: list[CameraTags] = []
-    for path in paths:
+    for path in image_paths(folder):
         image_tags, camera_tags = read_tags_and_camera(path)
         tags.append(image_tags)
         extras.append(camera_tags)
         if progress is not None:
             progress(1)
-    return frames_from_tags(
-        tags, camera=camera, fallback_camera=fallback_camera, where=str(folder), camera_tags=extras
-    )
+    return tags, extras
 
 
 def frames_from_images(folder: str | os.PathLike[str], *, camera: Camera | None = None) -> Frames:

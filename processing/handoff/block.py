@@ -33,12 +33,12 @@ from planner.errors import CameraError
 from planner.geo import LocalFrame
 
 from ..frames import AltitudeReference, Frames, local_frame_at
-from ..image_frames import frames_from_tags, image_paths
+from ..image_frames import frames_from_tags, read_folder_tags
 from .errors import HandoffInputError
 from .intrinsics import Intrinsics, intrinsics_for
 
 if TYPE_CHECKING:
-    from acquisition.exif import CameraTags, ImageTags
+    pass
 
 log = logging.getLogger(__name__)
 
@@ -146,17 +146,7 @@ def read_block(
     progress: Callable[[int], None] | None = None,
 ) -> Block:
     """Read every JPEG in ``image_dir`` into a :class:`Block` (module docstring)."""
-    from acquisition.exif import read_tags_and_camera
-
-    paths = image_paths(image_dir)
-    tags: list[ImageTags] = []
-    camera_tags: list[CameraTags] = []
-    for p in paths:
-        image_tags, extra = read_tags_and_camera(p)
-        tags.append(image_tags)
-        camera_tags.append(extra)
-        if progress is not None:
-            progress(1)
+    tags, camera_tags = read_folder_tags(image_dir, progress=progress)
     notes: list[str] = []
     # Cameras: one per (make, model, focal length, image size).
     groups: dict[tuple[str, str, float, int, int], list[int]] = {}
