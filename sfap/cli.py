@@ -36,8 +36,9 @@ COMMANDS: dict[str, tuple[str, str]] = {
 @runtime_checkable
 class Verdict(Protocol):
     """What a command that judges returns (``sfap check``: a CheckResult; ``sfap geotag``: a
-    GeotagResult, passed when every frame was tagged): exit 1 unless it passed, after the command
-    has presented what it found."""
+    GeotagResult, passed when every frame was tagged; ``sfap handoff``: a HandoffResult, passed
+    unless --run found a block that does not reconstruct): exit 1 unless it passed, after the
+    command has presented what it found."""
 
     passed: bool
 

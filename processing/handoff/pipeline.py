@@ -63,7 +63,7 @@ class HandoffResult:
     work: Path
     report: dict[str, Any]
     quicklook: QuickLook | None = None
-    exit_code: int = 0
+    passed: bool = True  # False: --run found a block that does not reconstruct (sfap exits 1)
     messages: tuple[str, ...] = field(default_factory=tuple)
 
 
@@ -112,7 +112,7 @@ def handoff(
             "notes": list(plan.notes),
         }
     quick: QuickLook | None = None
-    exit_code = 0
+    passed = True
     with staged_output_dir(work, overwrite=options.overwrite) as stage:
         if options.engine is Engine.COLMAP:
             from .colmap_project import write_colmap_project
@@ -130,8 +130,7 @@ def handoff(
                     progress=say,
                 )
                 report["quicklook"] = quicklook_dict(quick)
-                if not quick.reconstructs:
-                    exit_code = 1
+                passed = quick.reconstructs
                 if plan is not None and quick.largest is not None:
                     say("accuracy: control and check points")
                     acc = control_accuracy(plan, quick.largest.views)
@@ -191,4 +190,4 @@ def handoff(
         (stage / "report.json").write_text(write_json(report), encoding="utf-8")
         if options.engine is Engine.COLMAP:
             (stage / "report.html").write_text(report_html(report, quick), encoding="utf-8")
-    return HandoffResult(work=Path(work), report=report, quicklook=quick, exit_code=exit_code)
+    return HandoffResult(work=Path(work), report=report, quicklook=quick, passed=passed)

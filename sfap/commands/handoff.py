@@ -105,7 +105,7 @@ def command(
     max_image_size_px: int,
     overwrite: bool,
     as_json: bool,
-) -> None:
+) -> HandoffResult:
     """Hand the frames in IMAGES to a reconstruction engine: a project it opens or runs with no
     hand editing. Image pairs come from the frames' ground footprints (EXIF altitudes are AMSL:
     give --ground-elevation-m or --dem, as for `sfap check`); pose priors are in a local metric
@@ -147,8 +147,7 @@ def command(
     )
     result = handoff(images, work, options, progress=say)
     _present(result, as_json)
-    if result.exit_code:
-        click.get_current_context().exit(result.exit_code)
+    return result  # sfap/cli.py: exit 1 when the block did not reconstruct
 
 
 def _present(result: HandoffResult, as_json: bool) -> None:
