@@ -365,10 +365,33 @@ def _read_maps(
     return exif, xmp
 
 
+@dataclass(frozen=True)
+class HeaderSnapshot:
+    """What reading a frame's header saw, so that writing the frame later need not walk and parse
+    the header again (:class:`GeotagJob` ``seen``).
+
+    It is used only while the file is the same one: ``identity`` (device, inode, size, mtime in
+    ns) must match, and the bytes read again up to the end of the SOS segment must end with
+    ``sos_segment``; otherwise the header is read afresh. The maps are what
+    :func:`acquisition.jpeg_meta.header_maps` returned; the patch built from them is read back
+    and compared as always, so a stale map cannot pass unnoticed."""
+
+    identity: tuple[int, int, int, int]
+    sos_offset: int
+    sos_segment: bytes
+    exif: dict[str, str]
+    xmp: dict[str, Any]
+
+
+def _identity(stat: os.stat_result) -> tuple[int, int, int, int]:
+    return (stat.st_dev, stat.st_ino, stat.st_size, stat.st_mtime_ns)
+
+
 def _read_file_maps(
     path: str | os.PathLike[str],
-) -> tuple[dict[str, Any], dict[str, Any], int | None, int | None]:
-    """The EXIF and XMP maps and the pixel size of one JPEG, from its metadata segments only.
+) -> tuple[dict[str, Any], dict[str, Any], int | None, int | None, HeaderSnapshot | None]:
+    """The EXIF and XMP maps, the pixel size of one JPEG, from its metadata segments only, and
+    the header's snapshot when the Python reader read it (None when exiv2 did).
     Raises :class:`GeotagError` when the file is unreadable."""
     with open(path, "rb") as handle:
         fd = handle.fileno()
@@ -376,8 +399,17 @@ def _read_file_maps(
         if head != b"\xff\xd8":
             raise GeotagError(f"{path}: not a JPEG file (no SOI marker); remove it from the folder")
         try:  # the header segments only, read and parsed here (exiv2 for what this does not handle)
-            split = _split_header(lambda offset, n: os.pread(fd, n, offset), os.fstat(fd).st_size, str(path))
-            return jpeg_meta.header_maps(split.header)
+            stat = os.fstat(fd)
+            split = _split_header(lambda offset, n: os.pread(fd, n, offset), stat.st_size, str(path))
+            exif, xmp, width, height = jpeg_meta.header_maps(split.header)
+            seen = HeaderSnapshot(
+                identity=_identity(stat),
+                sos_offset=split.sos_offset,
+                sos_segment=split.sos_segment,
+                exif=exif,
+                xmp=xmp,
+            )
+            return exif, xmp, width, height, seen
         except (GeotagError, jpeg_meta.UnsupportedHeaderError, UnicodeDecodeError, struct.error) as error:
             log.debug("%s: read by exiv2 (%s)", path, error)
     try:
@@ -391,13 +423,19 @@ def _read_file_maps(
         height = image.get_pixel_height() or None
     finally:
         image.close()
-    return exif, xmp, width, height
+    return exif, xmp, width, height, None
 
 
 def read_tags(path: str | os.PathLike[str]) -> ImageTags:
     """Read the tags of one JPEG. Raises :class:`GeotagError` when the file is unreadable."""
-    exif, xmp, width, height = _read_file_maps(path)
-    return tags_from_maps(str(path), exif, xmp, width_px=width, height_px=height)
+    return read_tags_and_header(path)[0]
+
+
+def read_tags_and_header(path: str | os.PathLike[str]) -> tuple[ImageTags, HeaderSnapshot | None]:
+    """:func:`read_tags`, and the header's snapshot for writing the frame later (None when the
+    header is one only exiv2 handles)."""
+    exif, xmp, width, height, seen = _read_file_maps(path)
+    return tags_from_maps(str(path), exif, xmp, width_px=width, height_px=height), seen
 
 
 def tags_from_maps(
@@ -562,7 +600,7 @@ def camera_tags_from_maps(exif: dict[str, Any], xmp: dict[str, Any]) -> CameraTa
 
 def read_tags_and_camera(path: str | os.PathLike[str]) -> tuple[ImageTags, CameraTags]:
     """:func:`read_tags` and :class:`CameraTags` of one JPEG from one read of its metadata."""
-    exif, xmp, width, height = _read_file_maps(path)
+    exif, xmp, width, height, _ = _read_file_maps(path)
     tags = tags_from_maps(str(path), exif, xmp, width_px=width, height_px=height)
     return tags, camera_tags_from_maps(exif, xmp)
 
@@ -764,12 +802,17 @@ def _geotag_change(tag: GeoTag) -> Any:
     return change
 
 
-def _geotag_fast(tag: GeoTag) -> Callable[[bytes], bytes]:
+#: ``fast(header, maps)``: the new header, or UnsupportedHeaderError; ``maps`` are the header's
+#: (EXIF, XMP) maps when already read (:class:`HeaderSnapshot`), else None.
+FastChange = Callable[[bytes, "tuple[dict[str, str], dict[str, Any]] | None"], bytes]
+
+
+def _geotag_fast(tag: GeoTag) -> FastChange:
     """What :func:`_geotag_change` does, without exiv2: a new GPS IFD, the XMP edited in place."""
     gps = {key: value for key, value in _exif_gps_values(tag).items() if value is not None}
 
-    def fast(header: bytes) -> bytes:
-        return jpeg_meta.patch_header(header, gps, lambda xmp: _xmp_values(tag, xmp))
+    def fast(header: bytes, maps: tuple[dict[str, str], dict[str, Any]] | None) -> bytes:
+        return jpeg_meta.patch_header(header, gps, lambda xmp: _xmp_values(tag, xmp), maps=maps)
 
     return fast
 
@@ -815,6 +858,23 @@ def _copy_range(src_fd: int, dst_fd: int, offset: int, count: int) -> None:
         count -= done
 
 
+def _split_seen(fd: int, stat: os.stat_result, seen: HeaderSnapshot | None) -> _Split | None:
+    """The header as ``seen`` found it, read in one call, when the file is still the one it
+    read (same identity, and the SOS segment where it was); else None."""
+    if seen is None or _identity(stat) != seen.identity:
+        return None
+    end = seen.sos_offset + len(seen.sos_segment)
+    data = os.pread(fd, end, 0)
+    if len(data) != end or not data.startswith(b"\xff\xd8") or data[seen.sos_offset :] != seen.sos_segment:
+        return None
+    return _Split(
+        header=data[: seen.sos_offset],
+        sos_segment=seen.sos_segment,
+        sos_offset=seen.sos_offset,
+        size=stat.st_size,
+    )
+
+
 def _has_eoi(fd: int, split: _Split, name: str) -> bool:
     """True when the image data ends with an EOI marker.
 
@@ -839,24 +899,30 @@ def _write_file(
     overwrite: bool,
     atomic: bool,
     check_end: bool = True,
-    fast: Callable[[bytes], bytes] | None = None,
+    fast: FastChange | None = None,
+    seen: HeaderSnapshot | None = None,
 ) -> tuple[Path, list[str]]:
     """``src`` with its header changed by ``change`` written to ``dst``; (path, warnings).
 
-    ``fast(header)``, when given, makes the same change without exiv2 (:mod:`acquisition.jpeg_meta`);
-    a header it does not handle goes to exiv2."""
+    ``fast(header, maps)``, when given, makes the same change without exiv2
+    (:mod:`acquisition.jpeg_meta`); a header it does not handle goes to exiv2. ``seen``: what an
+    earlier read of ``src`` saw (:class:`HeaderSnapshot`), used while the file is the same."""
     name = str(src)
     warnings: list[str] = []
     same = os.path.abspath(src) == os.path.abspath(dst)
     target = Path(dst)
     with open(src, "rb") as source:
         fd = source.fileno()
-        size = os.fstat(fd).st_size
-        split = _split_header(lambda offset, n: os.pread(fd, n, offset), size, name)
+        stat = os.fstat(fd)
+        size = stat.st_size
+        split = _split_seen(fd, stat, seen)
+        maps = None if split is None or seen is None else (seen.exif, seen.xmp)
+        if split is None:
+            split = _split_header(lambda offset, n: os.pread(fd, n, offset), size, name)
         header = None
         if fast is not None:
             try:
-                header = fast(split.header)
+                header = fast(split.header, maps)
             except (jpeg_meta.UnsupportedHeaderError, UnicodeDecodeError, struct.error, ValueError) as error:
                 log.debug("%s: tags written by exiv2 (%s)", name, error)
         if header is None:
@@ -927,6 +993,8 @@ class GeotagJob:
     src: str
     dst: str
     tag: GeoTag
+    #: what reading ``src`` earlier saw (:func:`read_tags_and_header`): spares a second parse
+    seen: HeaderSnapshot | None = None
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -953,6 +1021,7 @@ def _run_job(job: GeotagJob, overwrite: bool, atomic: bool) -> GeotagWriteResult
             overwrite=overwrite,
             atomic=atomic,
             fast=_geotag_fast(job.tag),
+            seen=job.seen,
         )
     except (GeotagError, OSError) as error:
         return GeotagWriteResult(src=job.src, dst=job.dst, error=str(error))

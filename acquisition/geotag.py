@@ -183,6 +183,7 @@ def geotag_images(
             report=lambda n: report(len(paths) + n, total),
             warn=warnings.extend,
             summary=result,
+            seen={str(fr.path): fr.seen for fr in frames if fr.seen is not None},
         )
     report(total, total)
     return result(final, outputs)

@@ -104,11 +104,14 @@ class Frame:
     path: Path
     tags: exif.ImageTags | None = None
     error: str | None = None
+    #: the header as read, so that writing the frame does not parse it again
+    seen: exif.HeaderSnapshot | None = None
 
 
 def _read_frame(path: Path) -> Frame:
     try:
-        return Frame(path, tags=exif.read_tags(path))
+        tags, seen = exif.read_tags_and_header(path)
+        return Frame(path, tags=tags, seen=seen)
     except (GeotagError, OSError) as error:
         return Frame(path, error=str(error))
 

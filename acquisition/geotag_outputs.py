@@ -5,7 +5,7 @@ into place whole; with ``in_place`` every original is backed up before the first
 from __future__ import annotations
 
 import shutil
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -46,8 +46,11 @@ def write_outputs(
     report: Callable[[int], None],
     warn: Callable[[Iterable[str]], None],
     summary: Callable[[list[FrameResult], list[str]], GeotagResult],
+    seen: Mapping[str, exif.HeaderSnapshot] | None = None,
 ) -> tuple[list[FrameResult], list[str]]:
-    """Write tagged frames, sidecars and the report; returns the frames with their output paths."""
+    """Write tagged frames, sidecars and the report; returns the frames with their output paths.
+    ``seen``: each source path's header as read (:class:`acquisition.exif.HeaderSnapshot`)."""
+    seen = seen or {}
     to_write = [f for f in frames if f.placed]
     written: list[FrameResult] = []
     if in_place:
@@ -70,6 +73,7 @@ def write_outputs(
                 src=frame.source_path,
                 dst=frame.source_path if in_place else str(staging / frame.name),
                 tag=_geotag_of(frame),
+                seen=seen.get(frame.source_path),
             )
             for frame in to_write
         ]

@@ -491,16 +491,23 @@ def patch_header(
     header: bytes,
     gps: Mapping[str, str],
     xmp_changes_for: Callable[[dict[str, Any]], Mapping[str, str | None]],
+    *,
+    maps: tuple[dict[str, str], dict[str, Any]] | None = None,
 ) -> bytes:
     """The header with its GPS IFD replaced by ``gps`` and the XMP changes made that
     ``xmp_changes_for(the header's XMP map)`` asks for (key -> text, None: remove), checked by
-    reading it back. Raises :class:`UnsupportedHeaderError` when exiv2 should do it instead."""
+    reading it back. ``maps``: the header's (EXIF, XMP) maps from :func:`header_maps` when the
+    caller has them already. Raises :class:`UnsupportedHeaderError` when exiv2 should do it
+    instead."""
     segs = segments(header)
     exifs = _find(header, segs, EXIF_ID)
     xmps = _find(header, segs, XMP_ID)
     if len(exifs) != 1 or len(xmps) > 1:
         raise UnsupportedHeaderError("no EXIF segment, or several EXIF or XMP segments")
-    old_exif, old_xmp, _, _ = header_maps(header)
+    if maps is None:
+        old_exif, old_xmp, _, _ = header_maps(header)
+    else:
+        old_exif, old_xmp = maps
     (e_start, e_end) = exifs[0]
     new_tiff = patch_exif(header[e_start + 4 + len(EXIF_ID) : e_end], gps)
     pieces: list[tuple[int, int, bytes]] = [(e_start, e_end, _segment(EXIF_ID + new_tiff))]

@@ -652,3 +652,95 @@ def test_write_geotags_batch(tmp_path: Path) -> None:
             assert exif.read_tags(out / source.name).gps_lat_deg == pytest.approx(10.0 + k)
     for source in sources[:6]:
         assert (tmp_path / "w1" / source.name).read_bytes() == (tmp_path / "w3" / source.name).read_bytes()
+
+
+# ---------------------------------------------------------------------------- one read per frame
+
+
+def test_a_frame_read_once_is_written_from_what_was_read(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Geotag reads every header for its capture time, then writes: the write uses that read
+    (the header bytes re-read in one call, its maps not parsed again) and gives the same bytes
+    as a write that reads the header afresh; only the read-back parses the new header."""
+    from acquisition import jpeg_meta
+
+    sources = sorted(GARFIELD.glob("*.JPG"))
+    parses: list[int] = []
+    real_maps = jpeg_meta.header_maps
+
+    def counting(header: bytes):  # type: ignore[no-untyped-def]
+        parses.append(1)
+        return real_maps(header)
+
+    for use_seen in (False, True):
+        out = tmp_path / str(use_seen)
+        out.mkdir()
+        jobs = []
+        for k, source in enumerate(sources):
+            tags, seen = exif.read_tags_and_header(source)
+            assert seen is not None and tags.capture_time_s is not None
+            jobs.append(
+                exif.GeotagJob(
+                    src=str(source),
+                    dst=str(out / source.name),
+                    tag=_tag(lat_deg=10.0 + k),
+                    seen=seen if use_seen else None,
+                )
+            )
+        parses.clear()
+        monkeypatch.setattr(jpeg_meta, "header_maps", counting)
+        results = exif.write_geotags(jobs, workers=1, atomic=False)
+        monkeypatch.setattr(jpeg_meta, "header_maps", real_maps)
+        assert all(r.written for r in results)
+        # without the read: the header parsed before the patch and after; with it: after only
+        assert len(parses) == (1 if use_seen else 2) * len(sources)
+    for source in sources:
+        assert (tmp_path / "True" / source.name).read_bytes() == (
+            tmp_path / "False" / source.name
+        ).read_bytes()
+
+
+def test_a_frame_changed_since_it_was_read_is_read_again(tmp_path: Path) -> None:
+    """The read is used only while the file is the one read: rewritten since (same size, same
+    layout, another capture time), the new header is read and written; with the same identity
+    but a stale map the read-back catches the difference and exiv2 writes it. Either way the
+    tags are right."""
+    second = sorted(GARFIELD.glob("*.JPG"))[1]
+    card = tmp_path / "frame.jpg"
+    shutil.copyfile(second, card)
+    _, seen = exif.read_tags_and_header(card)
+    assert seen is not None
+    data = card.read_bytes()
+    edited = data.replace(b"2016:11:22 16:32:", b"2016:11:22 17:45:")  # same length, same layout
+    assert edited != data and len(edited) == len(data)
+    with card.open("r+b") as handle:  # the crew fixed the camera clock between the two passes
+        handle.write(edited)
+    exif.write_geotags(
+        [exif.GeotagJob(src=str(card), dst=str(tmp_path / "a.jpg"), tag=_tag(lat_deg=12.5), seen=seen)],
+        atomic=False,
+    )
+    fresh = tmp_path / "fresh.jpg"
+    fresh.write_bytes(edited)
+    exif.write_geotag(fresh, tmp_path / "b.jpg", _tag(lat_deg=12.5))
+    assert (tmp_path / "a.jpg").read_bytes() == (tmp_path / "b.jpg").read_bytes()
+
+    # Same file, same identity, but the map the read kept says another capture time.
+    _, seen = exif.read_tags_and_header(second)
+    assert seen is not None
+    stale = exif.HeaderSnapshot(
+        identity=seen.identity,
+        sos_offset=seen.sos_offset,
+        sos_segment=seen.sos_segment,
+        exif={**seen.exif, "Exif.Photo.DateTimeOriginal": "2001:01:01 00:00:00"},
+        xmp=seen.xmp,
+    )
+    result = exif.write_geotags(
+        [exif.GeotagJob(src=str(second), dst=str(tmp_path / "c.jpg"), tag=_tag(lat_deg=12.5), seen=stale)],
+        atomic=False,
+    )
+    assert result[0].written
+    back, original = exif.read_tags(tmp_path / "c.jpg"), exif.read_tags(second)
+    assert back.gps_lat_deg == pytest.approx(12.5)
+    assert back.capture_time_s == original.capture_time_s
+    assert exif.compressed_image_data(tmp_path / "c.jpg") == exif.compressed_image_data(second)
