@@ -19,12 +19,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from planner.errors import InputError
-from planner.geo import LocalFrame
 
 from .errors import GeotagError
 from .exif import ImageTags
 from .geotag_results import OffsetSource
 from .interpolation import interpolate_poses, iso_utc
+from .local_plane import LocalPlane, segment_lengths_m
 from .telemetry.model import CameraEvents, FlightLog, PositionTrack
 
 F64 = NDArray[np.float64]
@@ -106,6 +106,11 @@ def parse_sync_position(text: str) -> SyncPoint:
         raise InputError(f"sync position {value!r} for {frame}: LAT,LON must be numbers (degrees)") from None
     if not (math.isfinite(lat) and math.isfinite(lon)):
         raise InputError(f"sync position {value!r} for {frame}: not finite")
+    if not (-90.0 < lat < 90.0 and -180.0 <= lon <= 180.0):
+        raise InputError(
+            f"sync position {value!r} for {frame}: latitude must be within -90..90 and longitude "
+            f"within -180..180 degrees (LAT,LON, in that order)"
+        )
     return SyncPoint(frame=frame.strip(), lat_deg=lat, lon_deg=lon)
 
 
@@ -132,9 +137,9 @@ def _passes(times_s: F64, lat_deg: F64, lon_deg: F64, point: SyncPoint) -> list[
     assert point.lat_deg is not None and point.lon_deg is not None
     order = np.argsort(times_s, kind="stable")
     t, lat, lon = times_s[order], lat_deg[order], lon_deg[order]
-    frame = LocalFrame.utm_for(point.lon_deg, point.lat_deg)
-    x, y = frame.to_xy(lon, lat)
-    px, py = frame.to_xy(point.lon_deg, point.lat_deg)
+    # Metres on the plane tangent at the sync position: exact at it, where distances matter.
+    x, y = LocalPlane.at(point.lon_deg, point.lat_deg).to_xy(lon, lat)
+    px = py = 0.0
     if t.size == 1:
         return [_Pass(float(t[0]), float(np.hypot(x[0] - px, y[0] - py)), 0.0)]
     dx, dy, dt = np.diff(x), np.diff(y), np.diff(t)
@@ -172,11 +177,10 @@ def track_speeds_m_s(positions: PositionTrack) -> list[float]:
     """Ground speed between consecutive samples of a track, m/s."""
     order = np.argsort(positions.time_utc_s, kind="stable")
     t, lat, lon = positions.time_utc_s[order], positions.lat_deg[order], positions.lon_deg[order]
-    frame = LocalFrame.utm_for(float(np.median(lon)), float(np.median(lat)))
-    x, y = frame.to_xy(lon, lat)
+    length = segment_lengths_m(lat, lon)
     dt = np.diff(t)
-    ok = (dt > 0) & np.isfinite(np.diff(x)) & np.isfinite(np.diff(y))
-    return (np.hypot(np.diff(x), np.diff(y))[ok] / dt[ok]).tolist()
+    ok = (dt > 0) & np.isfinite(length)
+    return (length[ok] / dt[ok]).tolist()
 
 
 def offset_cost_warning(offset: float, source: OffsetSource, speeds_m_s: Sequence[float]) -> str | None:
@@ -228,10 +232,8 @@ def sync_windows_with_events(
 def _event_points(times_s: F64, lat_deg: F64, lon_deg: F64, point: SyncPoint) -> list[_Pass]:
     """Each event as a 'pass' at its own distance from the point, nearest first."""
     assert point.lat_deg is not None and point.lon_deg is not None
-    frame = LocalFrame.utm_for(point.lon_deg, point.lat_deg)
-    x, y = frame.to_xy(lon_deg, lat_deg)
-    px, py = frame.to_xy(point.lon_deg, point.lat_deg)
-    d = np.hypot(x - px, y - py)
+    x, y = LocalPlane.at(point.lon_deg, point.lat_deg).to_xy(lon_deg, lat_deg)
+    d = np.hypot(x, y)
     return [_Pass(float(times_s[k]), float(d[k]), 0.0) for k in np.argsort(d) if np.isfinite(d[k])]
 
 

@@ -4,8 +4,9 @@
 gimbal tracks when the log has them); :class:`PoseInterpolation` holds one
 :class:`InterpolatedPose` per time, or the reason there is none.
 
-Positions are interpolated linearly in a local metric frame (the UTM zone of the flight,
-:class:`planner.geo.LocalFrame`), altitudes linearly, attitude by spherical linear
+Positions are interpolated linearly in a plane tangent at the track's median
+(:class:`acquisition.local_plane.LocalPlane`: linearly in latitude and longitude, within 2 mm of
+the geodesic between samples 100 m apart), altitudes linearly, attitude by spherical linear
 interpolation of quaternions (:mod:`acquisition.attitude`); the camera attitude combines vehicle
 and gimbal when the log has gimbal attitude. A time outside the track, or in a gap of the track
 longer than ``max_gap_s``, is not guessed: it gets None and a reason, except within
@@ -21,9 +22,8 @@ from datetime import UTC, datetime
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from planner.geo import LocalFrame
-
 from .attitude import GimbalMode, camera_quat, euler_deg_from_quat, quat_from_euler_deg, slerp
+from .local_plane import LocalPlane, distances_m
 from .telemetry.model import AttitudeTrack, PositionTrack
 
 logger = logging.getLogger(__name__)
@@ -70,6 +70,9 @@ def iso_utc(time_utc_s: float) -> str:
 
 #: How far beyond the ends of a track a time may be and still be placed (extrapolated), s.
 EDGE_S = 0.2
+
+#: A track sample this far from the track's median position is no position of this flight.
+FAR_FROM_TRACK_M = 1_000_000.0
 
 
 def _bracket(track_t: F64, t: F64, max_gap_s: float) -> tuple[I64, I64, F64, F64, list[str | None]]:
@@ -138,13 +141,13 @@ def interpolate_poses(
     attitudes: AttitudeTrack | None = None,
     gimbal: AttitudeTrack | None = None,
     gimbal_mode: GimbalMode = GimbalMode.EARTH,
-    frame: LocalFrame | None = None,
     max_gap_s: float = 5.0,
 ) -> PoseInterpolation:
     """Position and camera attitude at each time (UTC, POSIX s).
 
-    Position is interpolated linearly in ``frame`` (default: the UTM zone of the track) between
-    the two track samples around the time, altitudes linearly; attitude by slerp. A time outside
+    Position is interpolated linearly in the plane tangent at the track's median position
+    between the two track samples around the time, altitudes linearly; attitude by slerp. The
+    ground speed is the interval's length (at its own latitude) over its duration. A time outside
     the track, or inside a track gap longer than ``max_gap_s``, gets None and a reason. A missing
     or too sparse attitude (or gimbal, when the log has one) leaves the attitude None.
     """
@@ -155,15 +158,20 @@ def interpolate_poses(
     pt = positions.time_utc_s[order]
     lat = positions.lat_deg[order]
     lon = positions.lon_deg[order]
-    if frame is None:
-        frame = LocalFrame.utm_for(float(np.median(lon)), float(np.median(lat)))
-    x, y = frame.to_xy(lon, lat)
-    # Samples the frame cannot hold (a "0, 0" position before the GPS fix, half a world away)
-    # are not positions of this flight.
-    finite = np.isfinite(x) & np.isfinite(y)
-    if not finite.all():
-        logger.info("%d track samples outside the local frame ignored", int(np.sum(~finite)))
-        order, pt, x, y = order[finite], pt[finite], x[finite], y[finite]
+    # Samples that are no positions of this flight (not finite, a pole, or a "0, 0" position
+    # before the GPS fix, half a world away from the rest) are left out.
+    usable = np.isfinite(lat) & np.isfinite(lon) & (np.abs(lat) < 90.0)
+    if not usable.any():
+        return PoseInterpolation(
+            poses=(None,) * t.size, reasons=("the log has no usable positions",) * t.size
+        )
+    plane = LocalPlane.centred_on(lon[usable], lat[usable])
+    x, y = plane.to_xy(lon, lat)
+    usable &= np.hypot(x, y) <= FAR_FROM_TRACK_M
+    if not usable.all():
+        logger.info("%d track samples are no positions of this flight: ignored", int(np.sum(~usable)))
+        order = order[usable]
+        pt, lat, lon, x, y = (a[usable] for a in (pt, lat, lon, x, y))
         if pt.size == 0:
             return PoseInterpolation(
                 poses=(None,) * t.size, reasons=("the log has no usable positions",) * t.size
@@ -171,12 +179,11 @@ def interpolate_poses(
     lo, hi, w, gap, reasons = _bracket(pt, t, max_gap_s)
     xi = x[lo] + w * (x[hi] - x[lo])
     yi = y[lo] + w * (y[hi] - y[lo])
-    lon_i, lat_i = frame.to_lonlat(xi, yi)
+    lon_i, lat_i = plane.to_lonlat(xi, yi)
     span = pt[hi] - pt[lo]
+    length = distances_m(lat[lo], lon[lo], lat[hi], lon[hi])
     with np.errstate(divide="ignore", invalid="ignore"):
-        speed = np.where(
-            span > 0, np.hypot(x[hi] - x[lo], y[hi] - y[lo]) / np.where(span > 0, span, 1.0), 0.0
-        )
+        speed = np.where(span > 0, length / np.where(span > 0, span, 1.0), 0.0)
 
     def alt(column: F64 | None) -> F64 | None:
         if column is None:
