@@ -17,7 +17,10 @@ every offset in it (maker notes included, which are full of absolute offsets) st
   appended too and the TIFF header points at it. The old GPS IFD and its values, and a replaced
   IFD0 directory, are zeroed: the file carries one position, not two;
 - XMP properties are changed in the packet's text (attribute or simple element form), declaring
-  the namespace when it is new; a header without XMP gets a new packet after its EXIF segment.
+  the namespace when it is new; a header without XMP gets a new packet after its EXIF segment;
+- the header keeps its length when the XMP packet's padding (the whitespace the XMP
+  specification reserves for edits in place) can absorb the growth: the image data then stays at
+  its offset, and the writer copies the whole file in the kernel and writes the header over it.
 
 Every patch is read back with :func:`header_maps` and compared with what was asked (the keys set
 have their new text, the keys removed are gone, every other key is unchanged); a mismatch, a
@@ -487,6 +490,24 @@ _NEW_PACKET = (
 )
 
 
+_WHITESPACE = b" \t\r\n"
+
+
+def _padded(segment: bytes, growth: int) -> bytes:
+    """An XMP segment with ``growth`` bytes taken out of (or, when negative, added to) the
+    packet's padding, the whitespace before ``<?xpacket end=...?>`` that the XMP specification
+    reserves for edits in place; the segment unchanged when its padding is too short."""
+    end = segment.rfind(b"<?xpacket end=")
+    start = end
+    while start > 4 and segment[start - 1] in _WHITESPACE:
+        start -= 1
+    if growth == 0 or end < 0 or end - start < growth:
+        return segment
+    if growth > 0:
+        return _segment(segment[4 : end - growth] + segment[end:])
+    return _segment(segment[4:end] + b" " * -growth + segment[end:])
+
+
 def patch_header(
     header: bytes,
     gps: Mapping[str, str],
@@ -520,6 +541,11 @@ def patch_header(
         else:
             packet = patch_xmp(_NEW_PACKET, xmp_changes)
             pieces.append((e_end, e_end, _segment(XMP_ID + packet.encode("utf-8"))))
+    if xmp_changes and xmps:
+        # The XMP padding absorbs the growth, so that the image data stays where it was.
+        growth = sum(len(data) - (end - start) for start, end, data in pieces)
+        x_start, x_end, data = pieces[-1]
+        pieces[-1] = (x_start, x_end, _padded(data, growth))
     out, pos = [], 0
     for start, end, data in sorted(pieces, key=lambda p: (p[0], p[1])):
         out += [header[pos:start], data]

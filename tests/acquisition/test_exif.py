@@ -744,3 +744,67 @@ def test_a_frame_changed_since_it_was_read_is_read_again(tmp_path: Path) -> None
     assert back.gps_lat_deg == pytest.approx(12.5)
     assert back.capture_time_s == original.capture_time_s
     assert exif.compressed_image_data(tmp_path / "c.jpg") == exif.compressed_image_data(second)
+
+
+# ---------------------------------------------------------------------------- image data in place
+
+
+def _xmp_padding(header: bytes) -> int:
+    """Bytes of whitespace before the XMP packet's end processing instruction."""
+    end = header.rfind(b"<?xpacket end=")
+    start = end
+    while header[start - 1 : start] in (b" ", b"\n", b"\r", b"\t"):
+        start -= 1
+    return end - start
+
+
+def test_the_xmp_padding_keeps_the_image_data_where_it_was(tmp_path: Path) -> None:
+    """A frame with XMP padding (every Sequoia frame has 2 KiB of it) keeps its header length:
+    the growth of the tags comes out of the padding and the image data stays at its offset.
+    The new tags read back."""
+    for source in sorted(GARFIELD.glob("*.JPG"))[:6]:
+        out = tmp_path / source.name
+        exif.write_geotag(source, out, _tag(lat_deg=47.25))
+        data_in, data_out = source.read_bytes(), out.read_bytes()
+        before, after = exif._split_bytes(data_in, "in"), exif._split_bytes(data_out, "out")
+        assert after.sos_offset == before.sos_offset
+        assert data_out[after.sos_offset :] == data_in[before.sos_offset :]
+        assert 0 < _xmp_padding(after.header) < _xmp_padding(before.header)
+        back = exif.read_tags(out)
+        assert back.gps_lat_deg == pytest.approx(47.25) and back.camera_yaw_deg == pytest.approx(271.5)
+
+
+def test_a_frame_without_padding_to_spare_gets_a_longer_header(tmp_path: Path) -> None:
+    """No room in the XMP padding: the header grows, the image data follows it byte for byte."""
+    data = GARFIELD_FIRST.read_bytes()
+    split = exif._split_bytes(data, "in")
+    end = data.rfind(b"<?xpacket end=", 0, split.sos_offset)
+    start = end
+    while data[start - 1 : start] in (b" ", b"\n"):
+        start -= 1
+    # Take the padding out and fix the XMP segment's length field.
+    segment_at = data.rfind(b"\xff\xe1", 0, end)
+    length = int.from_bytes(data[segment_at + 2 : segment_at + 4], "big") - (end - start)
+    tight = data[: segment_at + 2] + length.to_bytes(2, "big") + data[segment_at + 4 : start] + data[end:]
+    source = tmp_path / "tight.jpg"
+    source.write_bytes(tight)
+    exif.write_geotag(source, tmp_path / "out.jpg", _tag(lat_deg=47.25))
+    written = (tmp_path / "out.jpg").read_bytes()
+    assert exif._split_bytes(written, "out").sos_offset > exif._split_bytes(tight, "in").sos_offset
+    assert exif.compressed_image_data(written) == exif.compressed_image_data(tight)
+    assert exif.read_tags(tmp_path / "out.jpg").gps_lat_deg == pytest.approx(47.25)
+
+
+def test_xmp_padding_gives_and_takes_whitespace_only() -> None:
+    from acquisition import jpeg_meta
+
+    packet = (
+        b"http://ns.adobe.com/xap/1.0/\x00<x:xmpmeta>a</x:xmpmeta>\n" + b" " * 40 + b'<?xpacket end="w"?>'
+    )
+    segment = b"\xff\xe1" + (len(packet) + 2).to_bytes(2, "big") + packet
+    for growth in (-17, 0, 5, 40):
+        padded = jpeg_meta._padded(segment, growth)
+        assert len(padded) == len(segment) - growth
+        assert int.from_bytes(padded[2:4], "big") == len(padded) - 2
+        assert padded[4:].replace(b" ", b"") == segment[4:].replace(b" ", b"")
+    assert jpeg_meta._padded(segment, 42) == segment  # 41 bytes of whitespace: not enough
