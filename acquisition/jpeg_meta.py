@@ -541,8 +541,10 @@ def patch_header(
         else:
             packet = patch_xmp(_NEW_PACKET, xmp_changes)
             pieces.append((e_end, e_end, _segment(XMP_ID + packet.encode("utf-8"))))
-    if xmp_changes and xmps:
+    if xmps:
         # The XMP padding absorbs the growth, so that the image data stays where it was.
+        if not xmp_changes:
+            pieces.append((xmps[0][0], xmps[0][1], header[xmps[0][0] : xmps[0][1]]))
         growth = sum(len(data) - (end - start) for start, end, data in pieces)
         x_start, x_end, data = pieces[-1]
         pieces[-1] = (x_start, x_end, _padded(data, growth))

@@ -808,3 +808,17 @@ def test_xmp_padding_gives_and_takes_whitespace_only() -> None:
         assert int.from_bytes(padded[2:4], "big") == len(padded) - 2
         assert padded[4:].replace(b" ", b"") == segment[4:].replace(b" ", b"")
     assert jpeg_meta._padded(segment, 42) == segment  # 41 bytes of whitespace: not enough
+
+
+def test_a_position_alone_also_keeps_the_image_data_in_place(tmp_path: Path) -> None:
+    """No XMP property to change (a position without attitude on a frame without Pix4D or DJI
+    tags): the padding still absorbs the new GPS directory."""
+    source = tmp_path / "plain.jpg"
+    make_jpeg(source, xmp={"Xmp.xmp.CreatorTool": "test"})
+    data = source.read_bytes()
+    # exiv2 writes its XMP with 2 KiB or more of padding
+    assert _xmp_padding(exif._split_bytes(data, "in").header) > 500
+    exif.write_geotag(source, tmp_path / "out.jpg", exif.GeoTag(lat_deg=1.5, lon_deg=2.5))
+    written = (tmp_path / "out.jpg").read_bytes()
+    assert exif._split_bytes(written, "out").sos_offset == exif._split_bytes(data, "in").sos_offset
+    assert exif.read_tags(tmp_path / "out.jpg").gps_lon_deg == pytest.approx(2.5)
