@@ -19,7 +19,6 @@ from __future__ import annotations
 import datetime as dt
 import re
 from collections.abc import Sequence
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -34,16 +33,17 @@ _EXIF_DATETIME = re.compile(
 _POSIX_SECONDS = re.compile(r"[-+]?\d+(\.\d*)?")
 _HEMISPHERE = re.compile(r"(?<![A-Za-z])[NSEWnsew](?![A-Za-z])")
 
-# The fast forms, matched at the start of each line of a column joined one cell per line: ASCII
-# digits only, no inner space, no exponent (a cell outside them is read by its cell parser). Each
-# is a subset of what the cell parser accepts, and float() of it is what the cell parser computes.
-_DECIMAL_LINE = re.compile(r"^([-+]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+))\n", re.MULTILINE)
-# Groups: the date, HH:MM, the seconds, the zone.
-_STAMP_LINE = re.compile(
-    r"^([0-9]{4}[:-][0-9]{2}[:-][0-9]{2})[ T]([0-9]{2}:[0-9]{2}):([0-9]{2}(?:\.[0-9]+)?)"
-    r"(Z|[+-][0-9]{2}:?[0-9]{2})?\n",
-    re.MULTILINE,
+# The fast forms of a column, its cells joined one per line: ASCII digits only, no inner space,
+# no exponent (a cell outside them is read by its cell parser). Each is a subset of what the cell
+# parser accepts, and float() of it is what the cell parser computes.
+_DECIMAL_CELLS = re.compile(r"(?:[-+]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)\n)*")
+# The date and HH:MM are characters 0-15, the seconds and zone from 17 on.
+_STAMP_CELLS = re.compile(
+    r"(?:[0-9]{4}[:-][0-9]{2}[:-][0-9]{2}[ T][0-9]{2}:[0-9]{2}:[0-9]{2}(?:\.[0-9]+)?"
+    r"(?:Z|[+-][0-9]{2}:?[0-9]{2})?\n)*"
 )
+# The seconds and the zone (maybe empty) of each line of the stamps' tails.
+_SECONDS_ZONE = re.compile(r"([0-9.]+)([^\n]*)\n")
 
 
 def _zone_seconds(zone: str | None) -> int:
@@ -140,35 +140,27 @@ def utc_cell(text: str) -> float:
         return parse_iso_time_s(value)
 
 
-def _lines(cells: Sequence[str], form: re.Pattern[str]) -> list[Any] | None:
-    """The groups of ``form`` in each cell when every cell is in ``form``, else None.
-
-    The cells are joined one per line; ``form`` starts at a line start and ends with the line
-    break, so n matches in n lines are the n cells whole (a cell holding a line break would make
-    more lines than cells: the count catches it)."""
+def _all_in(cells: Sequence[str], form: re.Pattern[str]) -> str | None:
+    """The cells joined one per line when every cell is in ``form``, else None (a cell holding a
+    line break would make more lines than cells: the count catches it)."""
     joined = "\n".join(cells) + "\n" if cells else ""
-    if joined.count("\n") != len(cells):
+    if joined.count("\n") != len(cells) or not form.fullmatch(joined):
         return None
-    found = form.findall(joined)
-    return found if len(found) == len(cells) else None
+    return joined
 
 
-def _clock_s(hour_minute: str) -> float:
-    """Seconds from midnight of ``HH:MM`` (ValueError when it is no time of day)."""
-    hour, minute = int(hour_minute[:2]), int(hour_minute[3:])
-    if hour > 23 or minute > 59:
-        raise ValueError("not a time of day")
-    return float(hour * 3600 + minute * 60)
+def _minute_s(minute: str) -> float:
+    """POSIX seconds of ``YYYY:MM:DD HH:MM`` in UTC (ValueError when it is no date and time)."""
+    return _utc_minute_s(*(int(minute[i:j]) for i, j in ((0, 4), (5, 7), (8, 10), (11, 13), (14, 16))))
 
 
 def decimal_column(cells: Sequence[str]) -> F64 | None:
     """Cells that are all plain decimal numbers (``-93.124``, ``+.5``, ``290``: no exponent,
     unit, letter or space) as float64, else None. Each value is float() of its cell, which is
     what :func:`parse_angle_deg`, :func:`altitude_m` and :func:`first_number` give such a cell."""
-    found = _lines(cells, _DECIMAL_LINE)
-    if found is None:
+    if _all_in(cells, _DECIMAL_CELLS) is None:
         return None
-    return np.fromiter(map(float, found), dtype=np.float64, count=len(cells))
+    return np.fromiter(map(float, cells), dtype=np.float64, count=len(cells))
 
 
 def exif_datetime_column(cells: Sequence[str]) -> F64 | None:
@@ -176,25 +168,28 @@ def exif_datetime_column(cells: Sequence[str]) -> F64 | None:
     ``T`` for the space allowed; then nothing, ``Z``, ``+hh:mm`` or ``+hhmm``) as UTC POSIX
     seconds, else None (also when a date or time is not a real one: the cell parser then names
     it). Each value is :func:`parse_exif_datetime` of its cell, bit for bit: the same minute
-    (from :mod:`datetime`, once per date), plus the same float() of the seconds, minus the same
-    zone offset, in the same order of float operations."""
-    found = _lines(cells, _STAMP_LINE)
-    if found is None:
+    (from :mod:`datetime`, once per distinct minute), plus the same float() of the seconds,
+    minus the same zone offset, in the same order of float operations."""
+    joined = _all_in(cells, _STAMP_CELLS)
+    if joined is None:
         return None
-    if not found:
+    if not cells:
         return np.empty(0, dtype=np.float64)
-    dates, clocks, seconds, zones = zip(*found, strict=True)
+    minutes = [c[:16] for c in cells]  # date and HH:MM
+    seconds: Sequence[str]
+    zones: Sequence[str]
+    if joined.count("Z") == len(cells):  # each ends with Z (exiftool's own form)
+        seconds, zones = [c[17:-1] for c in cells], ("Z",)
+    else:
+        seconds, zones = zip(*_SECONDS_ZONE.findall("\n".join(c[17:] for c in cells) + "\n"), strict=True)
     try:
-        day_s = {day: _utc_minute_s(int(day[:4]), int(day[5:7]), int(day[8:10]), 0, 0) for day in set(dates)}
-        clock_s = {clock: _clock_s(clock) for clock in set(clocks)}
+        minute_s = {minute: _minute_s(minute) for minute in set(minutes)}
     except ValueError:
         return None
     zone_s = {zone: float(_zone_seconds(zone)) for zone in set(zones)}
     n = len(cells)
-    # Whole seconds below 2**53: the sum up to the minute is exact, as datetime's is.
-    minute_s = np.fromiter(map(day_s.__getitem__, dates), dtype=np.float64, count=n) + np.fromiter(
-        map(clock_s.__getitem__, clocks), dtype=np.float64, count=n
-    )
+    start_s = np.fromiter(map(minute_s.__getitem__, minutes), dtype=np.float64, count=n)
     second_s = np.fromiter(map(float, seconds), dtype=np.float64, count=n)
-    offset_s = np.fromiter(map(zone_s.__getitem__, zones), dtype=np.float64, count=n)
-    return (minute_s + second_s) - offset_s
+    if len(zone_s) == 1:  # one zone (or none) in the whole column
+        return (start_s + second_s) - zone_s[zones[0]]
+    return (start_s + second_s) - np.fromiter(map(zone_s.__getitem__, zones), dtype=np.float64, count=n)
