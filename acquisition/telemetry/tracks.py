@@ -193,6 +193,23 @@ def _exiftool_header(path: str, header: list[str], header_line: int = 1) -> _Exi
     return _ExiftoolHeader(path, header, index, {k: name for k, name in optional.items() if name in index})
 
 
+def _data_rows(text: str) -> list[list[str]] | None:
+    """The rows after the header that are not blank, or None when the text is not CSV."""
+    reader = csv.reader(io.StringIO(text))
+    try:
+        next(reader)  # the header
+        return [row for row in reader if "".join(row).strip()]
+    except csv.Error:
+        return None
+
+
+def _cells(rows: list[list[str]], i: int) -> list[str]:
+    """Column ``i`` of the rows, stripped ("" where a row is shorter)."""
+    if all(len(row) > i for row in rows):
+        return [row[i].strip() for row in rows]
+    return [row[i].strip() if i < len(row) else "" for row in rows]
+
+
 def _per_cell(parse: Callable[[str], float], cells: Sequence[str]) -> F64:
     return np.array([parse(c) for c in cells], dtype=np.float64)
 
@@ -216,19 +233,13 @@ def _parse_by_column(layout: _ExiftoolHeader, text: str) -> _Rows | None:
     (:mod:`.csv_cells`), else cell by cell with the same parsers :func:`_parse_by_row` uses,
     so the values are the same. None when a row is not a CSV row, a cell does not parse or a
     position is out of range: :func:`_parse_by_row` then says which and where, as it always has."""
-    reader = csv.reader(io.StringIO(text))
-    try:
-        next(reader)  # the header
-        kept = [row for row in reader if "".join(row).strip()]
-    except csv.Error:
+    kept = _data_rows(text)
+    if kept is None:
         return None
-    index, width = layout.index, min(map(len, kept), default=0)
+    index = layout.index
 
     def cells(name: str) -> list[str]:
-        i = index[name]
-        if i < width:
-            return [row[i].strip() for row in kept]
-        return [row[i].strip() if i < len(row) else "" for row in kept]
+        return _cells(kept, index[name])
 
     try:
         if "gpsdatetime" in index:
@@ -457,6 +468,17 @@ def is_csv_track(header: list[str]) -> bool:
     return exiftool or _layout_of(header) is not None
 
 
+@dataclass
+class _Fixes:
+    """The GPS fixes of an autopilot CSV, in file order, and the rows without a fix."""
+
+    time_utc_s: F64
+    lat_deg: F64
+    lon_deg: F64
+    alt_amsl_m: F64 | None
+    skipped: int
+
+
 def read_autopilot_csv(path: str, text: str, header: list[str]) -> FlightLog:
     """GPS fixes in one of :data:`CSV_LAYOUTS`. Rows without a fix (ArduPilot Status < 3, PX4
     time_utc_usec 0, a 0, 0 position) are skipped and counted."""
@@ -464,6 +486,100 @@ def read_autopilot_csv(path: str, text: str, header: list[str]) -> FlightLog:
     if found is None:
         raise TelemetryError(csv_layout_message(path, header))
     layout, index = found
+    fixes = _fixes_by_column(layout, index, text) or _fixes_by_row(path, layout, index, text)
+    if not len(fixes.time_utc_s):
+        raise TelemetryError(f"{path}: no GPS fix in the file ({fixes.skipped} rows without one)")
+    warnings: list[str] = []
+    if fixes.skipped:
+        warnings.append(f"{path}: {fixes.skipped} rows without a GPS fix skipped")
+    t_arr = fixes.time_utc_s
+    o = time_order(t_arr)
+    if len(o) < len(t_arr):
+        warnings.append(f"{path}: {len(t_arr) - len(o)} rows with a repeated time dropped")
+    for w in warnings:
+        log.warning("%s", w)
+    positions = PositionTrack(
+        time_utc_s=t_arr[o],
+        lat_deg=fixes.lat_deg[o],
+        lon_deg=fixes.lon_deg[o],
+        alt_amsl_m=fixes.alt_amsl_m[o] if fixes.alt_amsl_m is not None else None,
+        source=f"csv:{layout.name}",
+    )
+    return FlightLog(path=path, format="csv", positions=positions, warnings=tuple(warnings))
+
+
+def _floats(cells: list[str]) -> F64:
+    """float() of each cell (ValueError for a cell that is no number), as the row parse does."""
+    return np.fromiter(map(float, cells), dtype=np.float64, count=len(cells))
+
+
+def _utc_column(cells: list[str]) -> F64:
+    """:func:`.csv_cells.utc_cell` of each cell: POSIX seconds or stamps a column at a time when
+    the whole column is in one fast form, else cell by cell."""
+    seconds = decimal_column(cells)
+    if seconds is not None:
+        # A decimal in range is one of utc_cell's POSIX seconds (".5", the one decimal form
+        # utc_cell reads otherwise, is out of range and refused by both).
+        if not np.all((seconds >= 946_684_800.0) & (seconds <= 4_102_444_800.0)):
+            raise ValueError("not a POSIX time in seconds between 2000 and 2100")
+        return seconds
+    stamps = exif_datetime_column(cells)
+    return _per_cell(utc_cell, cells) if stamps is None else stamps
+
+
+def _fixes_by_column(layout: CsvLayout, index: dict[str, int], text: str) -> _Fixes | None:
+    """The fixes parsed a column at a time, each column over the rows the row parse reads it
+    in (the time of the rows with a fix status, the position of the rows with a time, the
+    altitude of the rows with a position), with the same float() and the same arithmetic. None
+    when a row is not a CSV row, a cell does not parse or a position is out of range:
+    :func:`_fixes_by_row` then says which and where."""
+    data = _data_rows(text)
+    if data is None:
+        return None
+    rows: list[list[str]] = data
+    skipped = 0
+
+    def keep(mask: NDArray[np.bool_]) -> None:
+        nonlocal rows, skipped
+        skipped += int(np.count_nonzero(~mask))
+        rows = [row for row, k in zip(rows, mask.tolist(), strict=True) if k]
+
+    try:
+        if layout.name == "ardupilot_gps" and "status" in index:
+            i = index["status"]
+            status = [row[i] if i < len(row) else "3" for row in rows]  # a short row has a fix
+            keep(~(_floats(status) < 3))
+        if layout.name in ("ardupilot_gps", "gps_week"):
+            week, ms = ("gwk", "gms") if layout.name == "ardupilot_gps" else ("gpsweek", "gpsms")
+            t = gps_week_ms_to_utc_s(_floats(_cells(rows, index[week])), _floats(_cells(rows, index[ms])))
+        elif layout.name.startswith("px4"):
+            usec = _floats(_cells(rows, index["timeutcusec"]))
+            has_time = ~(usec <= 0)
+            keep(has_time)
+            t = usec[has_time] / 1e6
+        else:
+            t = _utc_column(_cells(rows, index["timeutc"]))
+        lat, lon = _floats(_cells(rows, index[layout.lat])), _floats(_cells(rows, index[layout.lon]))
+        if layout.name == "px4_vehicle_gps_position":
+            lat, lon = lat * DEG_PER_E7, lon * DEG_PER_E7
+        has_position = ~((lat == 0.0) & (lon == 0.0))
+        keep(has_position)
+        t, lat, lon = t[has_position], lat[has_position], lon[has_position]
+        if not (np.all((lat >= -90.0) & (lat <= 90.0)) and np.all((lon >= -180.0) & (lon <= 180.0))):
+            return None
+        alt = None
+        if layout.alt is not None and layout.alt in index:
+            alt = _floats(_cells(rows, index[layout.alt]))
+            if layout.name == "px4_vehicle_gps_position":
+                alt = alt * 1e-3
+    except ValueError:
+        return None
+    return _Fixes(t, lat, lon, alt, skipped)
+
+
+def _fixes_by_row(path: str, layout: CsvLayout, index: dict[str, int], text: str) -> _Fixes:
+    """The fixes parsed row by row: the reference for :func:`_fixes_by_column`, and what names
+    the first bad row (line, column, value) in a TelemetryError."""
     rows = _csv_rows(text)
     next(rows)
     times: list[float] = []
@@ -520,22 +636,10 @@ def read_autopilot_csv(path: str, text: str, header: list[str]) -> FlightLog:
             lons.append(lon)
     except csv.Error as exc:
         raise TelemetryError(f"{path}, line {line + 1}: {exc}") from exc
-    if not times:
-        raise TelemetryError(f"{path}: no GPS fix in the file ({skipped} rows without one)")
-    warnings: list[str] = []
-    if skipped:
-        warnings.append(f"{path}: {skipped} rows without a GPS fix skipped")
-    t_arr = np.array(times, dtype=np.float64)
-    o = time_order(t_arr)
-    if len(o) < len(t_arr):
-        warnings.append(f"{path}: {len(t_arr) - len(o)} rows with a repeated time dropped")
-    for w in warnings:
-        log.warning("%s", w)
-    positions = PositionTrack(
-        time_utc_s=t_arr[o],
-        lat_deg=np.array(lats)[o],
-        lon_deg=np.array(lons)[o],
-        alt_amsl_m=np.array(alts)[o] if has_alt else None,
-        source=f"csv:{layout.name}",
+    return _Fixes(
+        np.array(times, dtype=np.float64),
+        np.array(lats, dtype=np.float64),
+        np.array(lons, dtype=np.float64),
+        np.array(alts, dtype=np.float64) if has_alt else None,
+        skipped,
     )
-    return FlightLog(path=path, format="csv", positions=positions, warnings=tuple(warnings))

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from acquisition.errors import TelemetryError
@@ -325,3 +325,122 @@ def test_the_benchmark_form_reads_by_column(tmp_path: Path) -> None:
     assert (
         log.positions.time_utc_s[0] == t0.timestamp() and log.positions.time_utc_s[1] == t0.timestamp() + 0.2
     )
+
+
+# ----------------------------------------------------------------------- autopilot exports
+
+
+def _fixed(low: float, high: float, places: int) -> st.SearchStrategy[str]:
+    return st.floats(low, high, allow_nan=False).map(lambda x: f"{x:.{places}f}")
+
+
+@st.composite
+def autopilot_tracks(draw: st.DrawFn) -> str:
+    """A GPS export in one of the autopilot layouts: rows without a fix (Status < 3, no UTC
+    time, a 0, 0 position), times as GPS week and ms, microseconds, POSIX seconds or stamps
+    (all fast, or mixed with other ISO forms), short and blank rows; in about one file of two,
+    one column with a bad cell."""
+    kind = draw(st.sampled_from(["ardupilot", "sensor_gps", "vehicle_gps", "utc", "gps_week"]))
+    degrees = {"lat": _fixed(-90, 90, 7), "lon": _fixed(-180, 180, 7)}
+    zero = st.just("0")
+    if kind == "ardupilot":
+        columns = {
+            "TimeUS": st.integers(0, 10**10).map(str),
+            "Status": st.sampled_from(["3", "4", "6", "1", "0", " 2.5 "]),
+            "GMS": st.integers(0, 604_799_999).map(str),
+            "GWk": st.integers(2000, 2400).map(str),
+            "Lat": degrees["lat"] | zero,
+            "Lng": degrees["lon"] | zero,
+            "Alt": _fixed(-50, 5000, 2),
+        }
+    elif kind in ("sensor_gps", "vehicle_gps"):
+        usec = st.integers(1_500_000_000_000_000, 2_000_000_000_000_000).map(str) | zero
+        e7 = kind == "vehicle_gps"
+        columns = {
+            "timestamp": st.integers(0, 10**10).map(str),
+            "time_utc_usec": usec,
+            "lat" if e7 else "latitude_deg": (
+                st.integers(-900_000_000, 900_000_000).map(str) if e7 else degrees["lat"]
+            )
+            | zero,
+            "lon" if e7 else "longitude_deg": (
+                st.integers(-1_800_000_000, 1_800_000_000).map(str) if e7 else degrees["lon"]
+            )
+            | zero,
+            "alt" if e7 else "altitude_msl_m": st.integers(-50_000, 5_000_000).map(str)
+            if e7
+            else _fixed(-50, 5000, 3),
+        }
+    elif kind == "utc":
+        seconds = _fixed(1_000_000_000, 2_000_000_000, 3)
+        fast_time = draw(st.sampled_from([stamps(), seconds]))
+        iso = st.sampled_from(
+            ["2023-11-14T22:13:20.5+00:00", "2023-11-14 22:13:20", "2023-11-14T22:13:20.250"]
+        )
+        columns = {
+            draw(st.sampled_from(["time_utc", "utc", "datetime", "time"])): fast_time
+            if draw(st.booleans())
+            else fast_time | iso,
+            draw(st.sampled_from(["lat", "latitude"])): degrees["lat"],
+            draw(st.sampled_from(["lon", "lng", "longitude"])): degrees["lon"],
+        }
+        if draw(st.booleans()):
+            columns[draw(st.sampled_from(["alt", "altitude"]))] = _fixed(-50, 5000, 2)
+    else:
+        columns = {
+            "gps_week": st.integers(2000, 2400).map(str),
+            "gps_ms": st.integers(0, 604_799_999).map(str),
+            "lat": degrees["lat"],
+            "lon": degrees["lon"],
+            "alt": _fixed(-50, 5000, 2),
+        }
+    names = list(columns)
+    n = draw(st.integers(0, 12))
+    cells = {name: [draw(columns[name]) for _ in range(n)] for name in names}
+    broken = draw(st.sampled_from([None, None, None, *names]))
+    if broken is not None and n:
+        cells[broken][draw(st.integers(0, n - 1))] = draw(st.sampled_from(["x", "", "95", "1e999", "nan"]))
+    out = io.StringIO()
+    writer = csv.writer(out, lineterminator="\n")
+    writer.writerow(names)
+    for i in range(n):
+        if draw(st.integers(0, 9)) == 0:
+            writer.writerow([])
+        row = [cells[name][i] for name in names]
+        if row and draw(st.integers(0, 30)) == 0:
+            row.pop()  # a short row: its last cell is empty
+        writer.writerow(row)
+    return out.getvalue()
+
+
+@settings(max_examples=300, deadline=None)
+@given(autopilot_tracks())
+@example(
+    "timestamp,time_utc_usec,lat,lon,alt\n1,nan,100,200,300\n2,1700000000000000,100,200,300\n"
+)  # NaN time
+@example("time,lat,lon\n1700000000.5,1,2\n95,1,2\n")  # POSIX seconds before 2000
+@example("time,lat,lon\n.5,1,2\n")
+@example("TimeUS,Status,GMS,GWk,Lat,Lng,Alt\n1,nan,2,2300,1,2,3\n2,,2,2300,1,2,3\n3\n")
+def test_autopilot_fixes_by_column_are_the_fixes_by_row(text: str) -> None:
+    """As for exiftool's layout: the column parse of an autopilot export equals the row parse
+    bit for bit (and the same count of rows without a fix), or is None where the row parse
+    refuses the file."""
+    header = next(csv.reader(io.StringIO(text)))
+    found = tracks._layout_of(header)
+    assert found is not None
+    layout, index = found
+    by_column = tracks._fixes_by_column(layout, index, text)
+    try:
+        by_row = tracks._fixes_by_row("t.csv", layout, index, text)
+    except TelemetryError:
+        assert by_column is None
+        return
+    assert by_column is not None and by_column.skipped == by_row.skipped
+    for name in ("time_utc_s", "lat_deg", "lon_deg"):
+        assert getattr(by_column, name).tobytes() == getattr(by_row, name).tobytes(), name
+    if by_row.alt_amsl_m is None:
+        assert by_column.alt_amsl_m is None
+    else:
+        assert (
+            by_column.alt_amsl_m is not None and by_column.alt_amsl_m.tobytes() == by_row.alt_amsl_m.tobytes()
+        )
