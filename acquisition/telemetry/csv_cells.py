@@ -1,4 +1,8 @@
-"""Cells of CSV tracks: the parser of each kind of cell, and the same parse of a whole column at once.
+"""Rows and cells of CSV tracks: the parser of each kind of cell, and the same parse of a whole
+column at once.
+
+Rows: :func:`csv_rows` (with their line numbers), :func:`data_rows` (the non-blank rows after
+the header), :func:`column_cells`; headings compare by :func:`normalize_heading`.
 
 Cell parsers (every form a track may hold; each raises ValueError saying what it expected):
 :func:`parse_exif_datetime` (``2016:11:22 15:32:01.25Z``, ``2016-11-22T15:32:01+01:00``),
@@ -8,17 +12,19 @@ and :func:`utc_cell` (a stamp or POSIX seconds).
 
 Column parsers: :func:`decimal_column` and :func:`exif_datetime_column` read the forms nearly
 every track is written in (plain decimal numbers; one ``YYYY:MM:DD HH:MM:SS[.fff][Z|+hh:mm]``
-stamp layout, ISO's ``-`` and ``T`` included) for a whole column in a few C-level passes, about
-twenty times faster than cell by cell. They return exactly (bit for bit) what the cell parser
+stamp layout, ISO's ``-`` and ``T`` included) for a whole column in a few C-level passes, five
+to twenty times faster than cell by cell. They return exactly (bit for bit) what the cell parser
 gives each cell, or None when any cell of the column is in another form: the caller then parses
 that column cell by cell, so every form still reads, and every error is still the cell parser's.
 """
 
 from __future__ import annotations
 
+import csv
 import datetime as dt
+import io
 import re
-from collections.abc import Sequence
+from collections.abc import Callable, Iterator, Sequence
 
 import numpy as np
 from numpy.typing import NDArray
@@ -193,3 +199,41 @@ def exif_datetime_column(cells: Sequence[str]) -> F64 | None:
     if len(zone_s) == 1:  # one zone (or none) in the whole column
         return (start_s + second_s) - zone_s[zones[0]]
     return (start_s + second_s) - np.fromiter(map(zone_s.__getitem__, zones), dtype=np.float64, count=n)
+
+
+def normalize_heading(heading: str) -> str:
+    """``GPS:GPSLatitude``, ``GPS Latitude``, ``gps_latitude`` -> ``gpslatitude``; a unit in
+    parentheses is dropped (``GPS Speed (km/h)`` -> ``gpsspeed``)."""
+    h = heading.strip().lstrip("\ufeff")
+    h = h.rsplit(":", 1)[-1]
+    h = re.sub(r"\(.*?\)", "", h)
+    return re.sub(r"[\s/_\-]", "", h).lower()
+
+
+def csv_rows(text: str) -> Iterator[tuple[int, list[str]]]:
+    """(line number where the row ends, cells) of each row, the header included."""
+    reader = csv.reader(io.StringIO(text))
+    for row in reader:
+        yield reader.line_num, row
+
+
+def data_rows(text: str) -> list[list[str]] | None:
+    """The rows after the header that are not blank, or None when the text is not CSV."""
+    reader = csv.reader(io.StringIO(text))
+    try:
+        next(reader)  # the header
+        return [row for row in reader if "".join(row).strip()]
+    except csv.Error:
+        return None
+
+
+def column_cells(rows: list[list[str]], i: int) -> list[str]:
+    """Column ``i`` of the rows, stripped ("" where a row is shorter)."""
+    if all(len(row) > i for row in rows):
+        return [row[i].strip() for row in rows]
+    return [row[i].strip() if i < len(row) else "" for row in rows]
+
+
+def per_cell(parse: Callable[[str], float], cells: Sequence[str]) -> F64:
+    """``parse`` of each cell, as float64 (its ValueError passes through)."""
+    return np.array([parse(c) for c in cells], dtype=np.float64)

@@ -18,7 +18,7 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from acquisition.errors import TelemetryError
-from acquisition.telemetry import read_log, tracks
+from acquisition.telemetry import autopilot_csv, read_log, tracks
 from acquisition.telemetry.csv_cells import (
     altitude_m,
     decimal_column,
@@ -426,12 +426,12 @@ def test_autopilot_fixes_by_column_are_the_fixes_by_row(text: str) -> None:
     bit for bit (and the same count of rows without a fix), or is None where the row parse
     refuses the file."""
     header = next(csv.reader(io.StringIO(text)))
-    found = tracks._layout_of(header)
+    found = autopilot_csv.layout_of(header)
     assert found is not None
     layout, index = found
-    by_column = tracks._fixes_by_column(layout, index, text)
+    by_column = autopilot_csv._fixes_by_column(layout, index, text)
     try:
-        by_row = tracks._fixes_by_row("t.csv", layout, index, text)
+        by_row = autopilot_csv._fixes_by_row("t.csv", layout, index, text)
     except TelemetryError:
         assert by_column is None
         return
