@@ -23,6 +23,7 @@ from numpy.typing import NDArray
 from ..errors import TelemetryError
 from ..mavlink_units import DEG_PER_E7
 from .csv_cells import (
+    F64,
     column_cells,
     csv_rows,
     data_rows,
@@ -36,8 +37,6 @@ from .gpstime import gps_week_ms_to_utc_s, time_order
 from .model import FlightLog, PositionTrack
 
 log = logging.getLogger(__name__)
-
-F64 = NDArray[np.float64]
 
 
 @dataclass(frozen=True)
@@ -306,10 +305,5 @@ def _fixes_by_row(path: str, layout: CsvLayout, index: dict[str, int], text: str
             lons.append(lon)
     except csv.Error as exc:
         raise TelemetryError(f"{path}, line {line + 1}: {exc}") from exc
-    return _Fixes(
-        np.array(times, dtype=np.float64),
-        np.array(lats, dtype=np.float64),
-        np.array(lons, dtype=np.float64),
-        np.array(alts, dtype=np.float64) if has_alt else None,
-        skipped,
-    )
+    t_s, lat_deg, lon_deg = (np.array(values, dtype=np.float64) for values in (times, lats, lons))
+    return _Fixes(t_s, lat_deg, lon_deg, np.array(alts, dtype=np.float64) if has_alt else None, skipped)

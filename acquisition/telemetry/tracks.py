@@ -35,11 +35,11 @@ import os
 from dataclasses import dataclass, field
 
 import numpy as np
-from numpy.typing import NDArray
 
 from ..errors import TelemetryError
 from .autopilot_csv import CSV_LAYOUTS, layout_of, read_autopilot_csv
 from .csv_cells import (
+    F64,
     altitude_m,
     column_cells,
     csv_rows,
@@ -57,8 +57,6 @@ from .gpstime import time_order
 from .model import AttitudeTrack, FlightLog, PositionTrack
 
 log = logging.getLogger(__name__)
-
-F64 = NDArray[np.float64]
 
 CSV_REQUIRED = ("gpslatitude", "gpslongitude")
 
