@@ -1,4 +1,5 @@
-"""The MAVLink adapter for mission items: the only module that knows degE7 and MISSION_ITEM_INT.
+"""The MAVLink adapter for mission items: the only module that knows MISSION_ITEM_INT, and degE7 (its
+constants in :mod:`acquisition.mavlink_units`, which needs no pymavlink).
 
 It also holds the mission protocol's constants that the ground station and the simulated
 vehicle share: :class:`MissionType`, :class:`MissionResult` (MAV_MISSION_RESULT), ArduPilot's
@@ -34,6 +35,8 @@ from typing import Any
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from planner.mission import Autopilot, HomePosition, MavCmd, MavFrame, MissionItem
+
+from .mavlink_units import E7_PER_DEG
 
 
 class MissionType(IntEnum):
@@ -108,8 +111,6 @@ def ardupilot_nan_allowed(command: int) -> frozenset[int]:
     return _ARDUPILOT_NAN_ALLOWED.get(int(command), frozenset())
 
 
-_DEG_E7 = 10_000_000
-
 #: INT frame -> the plain frame with the same meaning.
 _PLAIN_FRAME = {
     MavFrame.GLOBAL_INT: MavFrame.GLOBAL,
@@ -125,12 +126,12 @@ _NON_GLOBAL_WIRE_FRAMES = frozenset({1, 4, 7, 8, 9})
 
 def deg_to_e7(value_deg: float) -> int:
     """Degrees -> degE7 integer, rounded to the nearest unit (0.011 m of latitude)."""
-    return math.floor(value_deg * _DEG_E7 + 0.5)
+    return math.floor(value_deg * E7_PER_DEG + 0.5)
 
 
 def e7_to_deg(value_e7: int) -> float:
     """degE7 integer -> degrees."""
-    return value_e7 / _DEG_E7
+    return value_e7 / E7_PER_DEG
 
 
 def plain_frame(frame: MavFrame | int) -> MavFrame:

@@ -31,13 +31,11 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from planner.mission import HomePosition
 
-from .mavlink_items import deg_to_e7, e7_to_deg
+from .mavlink_items import deg_to_e7
+from .mavlink_units import DEG_PER_E7
 from .telemetry.gpstime import gps_usec_to_utc_s
 
 F64 = NDArray[np.float64]
-
-#: One degE7 unit in degrees (the conversion of :mod:`acquisition.mavlink_items`).
-DEG_PER_E7 = e7_to_deg(1)
 
 #: Below this many microseconds (about 3.2 years) a ``time_usec`` is time since boot.
 BOOT_US_LIMIT = 100_000_000_000_000

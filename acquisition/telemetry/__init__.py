@@ -83,7 +83,6 @@ def detect_format(path: str | os.PathLike[str]) -> str:
 
     Raises :class:`TelemetryError` naming the file and the formats known when it is none.
     """
-    from .mrk import MRK_SIGNATURE
     from .tracks import csv_layout_message, is_csv_track
 
     p = os.fspath(path)
@@ -109,6 +108,8 @@ def detect_format(path: str | os.PathLike[str]) -> str:
         header = next(csv.reader([first.replace(";", ",")]), [])
         if is_csv_track(header):
             return "csv"
+        from .mrk import MRK_SIGNATURE  # here: a CSV track does not pay for the MRK reader's import
+
         if MRK_SIGNATURE.match(first):
             return "mrk"
         printable = all(c.isprintable() or c in "\t\r\n" for c in text[:4096])

@@ -13,9 +13,9 @@ from xml.parsers import expat
 import numpy as np
 
 from ..errors import TelemetryError
+from .csv_cells import parse_iso_time_s
 from .gpstime import time_order
 from .model import FlightLog, flight_log, position_track
-from .tracks import parse_iso_time_s
 
 
 def read_gpx(path: str | os.PathLike[str]) -> FlightLog:

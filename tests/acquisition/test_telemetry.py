@@ -20,6 +20,7 @@ from shared_data import SHARED_DATA
 from acquisition.attitude import roll_pitch_yaw_deg_from_quaternion
 from acquisition.errors import TelemetryError
 from acquisition.telemetry import FORMATS, detect_format, read_log
+from acquisition.telemetry.csv_cells import parse_angle_deg
 from acquisition.telemetry.gpstime import (
     GPS_EPOCH_POSIX_S,
     SECONDS_PER_WEEK,
@@ -35,7 +36,6 @@ from acquisition.telemetry.gpstime import (
 )
 from acquisition.telemetry.model import FlightLog
 from acquisition.telemetry.mrk import read_mrk_table
-from acquisition.telemetry.tracks import parse_angle_deg
 
 REAL = SHARED_DATA / "ardupilot_sitl_plane"
 TLOG = REAL / "flight.tlog"
