@@ -34,10 +34,13 @@ event whose time pattern it shares, and frames or events left over are named.
    the cheapest are refined (step 4) and priced in units of the timing noise ``sigma`` (the
    residual scatter of the cheapest): ``sum (r / sigma)^2 + sum (dr)^2 / (2 sigma^2) + 6 per
    unmatched item`` (dr: the interval mismatch of consecutive pairs; 6 = -2 ln 0.05, about one
-   frame in twenty dropped or extra), the lowest wins. After the tolerance is narrowed, every
-   other alignment at a clearly different offset (more than the final tolerance away) is priced
-   the same way; when the best of them is worse by less than ``10 + 2 ln N`` (N of them: odds of
-   e^5 against each), the result is flagged ambiguous and the warning names the competing
+   frame in twenty dropped or extra; each squared term counts at most 9, three sigma: one late
+   frame must not outweigh the line ends that anchor an alignment), the lowest wins. After the
+   tolerance is narrowed, every other alignment at a clearly different offset (more than the
+   final tolerance away) is priced the same way, each pair of alignments with the larger of
+   their two scatters (a low estimate of the noise inflates every difference); when the best of
+   them is worse by less than ``10 + 2 ln N`` (N of them: odds of e^5 against each), the result
+   is flagged ambiguous and the warning names the competing
    offsets. A regular sequence with no pause or turn to anchor it, or a subset of a card whose
    rhythm repeats along the flight, is ambiguous; geotag then writes nothing until the crew
    confirms the offset or gives a sync point.
@@ -79,6 +82,10 @@ AMBIGUITY_MARGIN = 10.0
 #: Price of a frame or an event left unmatched, in the same units: -2 ln 0.05, a camera that
 #: drops or adds about one frame in twenty. A shift by one frame that loses one pair pays 12.
 UNMATCHED_COST = 6.0
+#: The most one residual or interval term adds to an alignment's price (3 sigma squared): the
+#: timing noise has heavier tails than a Gaussian (a camera's write delay now and then), and one
+#: such frame must not outweigh the line ends that anchor an alignment.
+OUTLIER_COST = 9.0
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -415,9 +422,8 @@ def match_frames_to_events(
         two residuals: variance 2 sigma^2), and UNMATCHED_COST per frame or event left over."""
         r = np.array([f[a] - e[b] - o - d * (e[b] - t_ref) for a, b in chosen])
         intervals = np.diff(r) if r.size > 1 else np.zeros(0)
-        return float(
-            np.sum((r / sigma) ** 2) + np.sum(intervals**2) / (2.0 * sigma * sigma)
-        ) + UNMATCHED_COST * (n + m - 2 * len(chosen))
+        terms = np.concatenate([(r / sigma) ** 2, intervals**2 / (2.0 * sigma * sigma)])
+        return float(np.sum(np.minimum(terms, OUTLIER_COST))) + UNMATCHED_COST * (n + m - 2 * len(chosen))
 
     # Contenders: every alignment within CONTENDER_PAIRS lost pairs of the cheapest (each costs
     # 2 gaps), refined. The winner is the best fit in units of the timing noise, not the
@@ -463,7 +469,11 @@ def match_frames_to_events(
                 continue
             if offset_windows_s and not allowed(other_offset):
                 continue
-            delta = chi2(other_pairs, other_offset, other_drift, sigma) - own
+            # The timing noise is estimated, and a low estimate inflates every difference:
+            # each pair of alignments is priced with the larger of their two scatters.
+            both = max(sigma, scatter(other_pairs, other_offset, other_drift))
+            own_here = own if both == sigma else chi2(pairs, offset, drift, both)
+            delta = chi2(other_pairs, other_offset, other_drift, both) - own_here
             competitors.append((other_offset, delta, len(other_pairs)))
         competitors.sort(key=lambda c: c[1])
         if competitors:

@@ -24,7 +24,7 @@ import exifread
 import numpy as np
 import pyexiv2
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from PIL import Image
 from shared_data import SHARED_DATA
@@ -291,6 +291,10 @@ def test_regular_sequence_is_flagged_ambiguous() -> None:
     offset_s=st.floats(-7200.0, 7200.0),
     interval_s=st.floats(1.2, 4.0),
 )
+# Found by this test: one late frame at a line end made the alignment one interval off look
+# better, confidently (before OUTLIER_COST and pricing with the larger scatter).
+@example(seed=318967, offset_s=0.0, interval_s=2.0)
+@example(seed=2061572043, offset_s=0.0, interval_s=1.6817546709707827)
 def test_matcher_property_random_surveys(seed: int, offset_s: float, interval_s: float) -> None:
     """Any survey-like timeline (lines of regular triggers, pauses in the turns), any offset,
     jitter 30 ms, up to 10 % dropped frames and up to 2 spurious frames between events: every
