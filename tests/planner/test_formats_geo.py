@@ -9,6 +9,7 @@ plan was built from, and the pixels of the rendered map.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import re
@@ -395,6 +396,21 @@ def test_stations_geojson_positions_and_properties(plan: SurveyPlan, tmp_path: P
     assert a["line"] == b["line"]
     d = geodesic_distance_m(a["lat_deg"], a["lon_deg"], b["lat_deg"], b["lon_deg"])
     assert d == pytest.approx(plan.passes[0].trigger_distance_m, rel=2e-3)  # UTM scale error
+
+
+@pytest.mark.parametrize("bad_index", [7, -1, 2**31 - 1])
+def test_stations_of_a_pass_the_plan_does_not_hold_are_refused(
+    plan: SurveyPlan, tmp_path: Path, bad_index: int
+) -> None:
+    """A station whose pass index is not one of the plan's passes (beyond them, negative) is a
+    planner bug named as such, and nothing is written."""
+    pass_index = plan.stations.pass_index.copy()
+    pass_index[len(pass_index) // 2] = bad_index
+    broken = dataclasses.replace(plan, stations=dataclasses.replace(plan.stations, pass_index=pass_index))
+    target = tmp_path / "stations.geojson"
+    with pytest.raises(PlanningError, match=rf"stations refer to pass \[{bad_index}\]"):
+        write_stations_geojson(broken, target)
+    assert not target.exists()
 
 
 def test_footprints_geojson_valid_ccw_and_at_the_stations(plan: SurveyPlan, tmp_path: Path) -> None:
