@@ -31,6 +31,7 @@ from .maplayout import (
     caption_text,
     header_text,
     map_frame,
+    median,
     pass_legend_counts,
     scale_bar_length_m,
 )
@@ -370,7 +371,7 @@ def draw_map(plan: SurveyPlan, *, max_footprints: int, max_stations: int, dpi: i
     st_index, st_step = _thin(n, max_stations)
     if st_index.size:
         steps = np.hypot(np.diff(st.x_m[st_index]), np.diff(st.y_m[st_index]))
-        spacing_pt = float(np.median(steps)) * frame.points_per_m if steps.size else 8.0
+        spacing_pt = median(steps) * frame.points_per_m if steps.size else 8.0
         area_pt2 = float(np.clip(0.5 * min(spacing_pt, 8.0) ** 2, 0.3, 8.0))
         r = max(page.pt(math.sqrt(area_pt2)) / 2, 0.75)
         px, py = page.xy(st.x_m[st_index] - ox, st.y_m[st_index] - oy)
