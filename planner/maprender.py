@@ -330,9 +330,12 @@ def draw_map(plan: SurveyPlan, *, max_footprints: int, max_stations: int, dpi: i
         width = max(1, round(page.pt(0.35)))
         corners = st.footprint_xy_m[fp_index] - (ox, oy)
         px, py = page.xy(corners[..., 0], corners[..., 1])
-        for k, p in enumerate(st.pass_index[fp_index]):
-            colour = _rgb(_PASS_COLOURS[kind_of_pass.get(int(p), PassKind.NADIR)], 0.35)
-            ring = list(zip(px[k].tolist(), py[k].tolist(), strict=True))
+        colours: dict[int, _Colour] = {}
+        for p, xs, ys in zip(st.pass_index[fp_index].tolist(), px.tolist(), py.tolist(), strict=True):
+            colour = colours.get(p)
+            if colour is None:
+                colour = colours[p] = _rgb(_PASS_COLOURS[kind_of_pass.get(p, PassKind.NADIR)], 0.35)
+            ring = list(zip(xs, ys, strict=True))
             layer_draw.line([*ring, ring[0]], fill=colour, width=width)
         entries.append(
             (
