@@ -66,7 +66,7 @@ def view_counts(
 
 
 def _stations_below(
-    u: NDArray[np.float64], seg: Segment, x: NDArray[np.float64], finite: bool, *, inclusive: bool
+    u: NDArray[np.floating], seg: Segment, x: NDArray[np.floating], finite: bool, *, inclusive: bool
 ) -> NDArray[np.intp]:
     """How many of the stations ``u`` (``seg``'s, ascending) lie below each ``x`` (``inclusive``:
     at or below): ``np.searchsorted(u, x, side)``, exactly.
@@ -75,9 +75,8 @@ def _stations_below(
     spacing`` rounded, then moved one station at a time until the stations on either side of
     it are on the right side of ``x`` (rounding leaves the estimate at most one off, so this
     is usually one step and one check): several times faster than a binary search per point."""
-    side = "right" if inclusive else "left"
     if not (finite and seg.spacing_m > 0.0 and math.isfinite(seg.spacing_m) and seg.count > 1):
-        return np.searchsorted(u, x, side=side)
+        return np.searchsorted(u, x, side="right" if inclusive else "left")
     n = len(u)
     ext = np.concatenate(([-np.inf], u, [np.inf]))  # ext[k] = u[k - 1], ext[k + 1] = u[k]
     steps = (x - seg.u_first_m) / seg.spacing_m
