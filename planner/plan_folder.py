@@ -21,7 +21,6 @@ from __future__ import annotations
 import json
 import logging
 import os
-import threading
 import typing
 from collections.abc import Callable
 from dataclasses import MISSING, dataclass, field, fields
@@ -44,7 +43,6 @@ log = logging.getLogger(__name__)
 SUMMARY_FILE = "summary.json"
 STATIONS_FILE = "stations.geojson"
 AREA_FILE = "area.geojson"
-MAP_FILE = "map.png"
 
 #: Files that make a folder a plan folder.
 PLAN_FILES = (SUMMARY_FILE, STATIONS_FILE)
@@ -58,7 +56,7 @@ OUTPUT_FILES = (
     "footprints.geojson",
     AREA_FILE,
     "mission.kml",
-    MAP_FILE,
+    "map.png",
     SUMMARY_FILE,
 )
 
@@ -228,50 +226,17 @@ def write_outputs(
         "footprints.geojson": lambda p: write_footprints_geojson(plan, p),
         AREA_FILE: lambda p: write_area_geojson(plan, p),
         "mission.kml": lambda p: write_kml(plan, p),
-        MAP_FILE: lambda p: render_map_png(plan, p),
+        "map.png": lambda p: render_map_png(plan, p),
         SUMMARY_FILE: lambda p: atomic_write_text(p, summary_json(plan)),
     }
     final = Path(out_dir)
     with staged_output_dir(final, overwrite=overwrite) as staging:
-        # map.png is drawn while the others are written: most of its time is Pillow's filling,
-        # pasting, quantising and compressing, which let other threads run (a small plan's
-        # files are written in about two thirds of the time on two cores). Same bytes: each
-        # file is made from the plan alone.
-        drawing = _Writer(writers[MAP_FILE], staging / MAP_FILE)
-        try:
-            for name in OUTPUT_FILES:
-                log.debug("writing %s", name)
-                if name == MAP_FILE:
-                    drawing.result()
-                else:
-                    writers[name](staging / name)
-                if progress is not None:
-                    progress(1)
-        finally:
-            drawing.join()  # never leave it writing into a folder that is being removed
+        for name in OUTPUT_FILES:
+            log.debug("writing %s", name)
+            writers[name](staging / name)
+            if progress is not None:
+                progress(1)
     return [final / name for name in OUTPUT_FILES]
-
-
-class _Writer(threading.Thread):
-    """One output written on a thread of its own; :meth:`result` waits for it and raises what
-    it raised."""
-
-    def __init__(self, write: Callable[[Path], object], path: Path) -> None:
-        super().__init__(name=f"write {path.name}", daemon=True)
-        self._write, self._path = write, path
-        self._error: BaseException | None = None
-        self.start()
-
-    def run(self) -> None:
-        try:
-            self._write(self._path)
-        except BaseException as error:  # handed to the caller by result()
-            self._error = error
-
-    def result(self) -> None:
-        self.join()
-        if self._error is not None:
-            raise self._error
 
 
 # --- reading ------------------------------------------------------------------------------------

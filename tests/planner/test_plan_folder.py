@@ -9,8 +9,6 @@ from __future__ import annotations
 import dataclasses
 import json
 import shutil
-import threading
-import time
 from pathlib import Path
 
 import numpy as np
@@ -177,52 +175,3 @@ def test_damaged_folders_are_named_errors(written: Written, tmp_path: Path) -> N
     (copy / "stations.geojson").write_text(json.dumps(stations))
     with pytest.raises(PlanFolderError, match=r"stations.geojson: a station lacks 'lat_deg'"):
         read_plan_folder(copy)
-
-
-def _slow_map(seconds: float, calls: list[str]) -> object:
-    """A map writer that takes ``seconds`` and then writes its file (map.png is drawn on a
-    thread of its own while the others are written)."""
-
-    def write(plan: SurveyPlan, path: Path, **_: object) -> Path:
-        time.sleep(seconds)
-        path.write_bytes(b"map")
-        calls.append(threading.current_thread().name)
-        return path
-
-    return write
-
-
-def test_a_failing_file_waits_for_the_map_and_leaves_nothing(
-    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
-) -> None:
-    """mission.kml fails while map.png is still being drawn: the error comes out, the map's
-    thread has finished before the staging folder went, and nothing is left behind."""
-    import planner.formats.kml
-    import planner.mapplot
-
-    calls: list[str] = []
-    monkeypatch.setattr(planner.mapplot, "render_map_png", _slow_map(0.5, calls))
-
-    def broken_kml(plan: SurveyPlan, path: Path, **_: object) -> Path:
-        raise OSError(28, "No space left on device", str(path))
-
-    monkeypatch.setattr(planner.formats.kml, "write_kml", broken_kml)
-    with pytest.raises(OSError, match="No space left"):
-        write_outputs(_oblique_block(), tmp_path / "out")
-    assert calls == ["write map.png"]  # drawn on its own thread, and waited for
-    time.sleep(0.1)
-    assert list(tmp_path.iterdir()) == []
-
-
-def test_a_failing_map_is_raised_and_leaves_nothing(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
-    import planner.mapplot
-
-    def broken_map(plan: SurveyPlan, path: Path, **_: object) -> Path:
-        raise InputError("max_footprints = -1: must be 0 or more")
-
-    monkeypatch.setattr(planner.mapplot, "render_map_png", broken_map)
-    progress: list[int] = []
-    with pytest.raises(InputError, match="max_footprints"):
-        write_outputs(_oblique_block(), tmp_path / "out", progress=progress.append)
-    assert len(progress) == OUTPUT_FILES.index("map.png")  # every file before it, none after
-    assert list(tmp_path.iterdir()) == []
