@@ -191,7 +191,10 @@ def _fill_polygon(
     right, bottom = min(page.width, math.ceil(max(xs)) + 1), min(page.height, math.ceil(max(ys)) + 1)
     if right <= left or bottom <= top:
         return
-    mask = Image.new("L", (right - left, bottom - top), 0)
+    # The mask is 0 or 255 (polygons are drawn without anti-aliasing): as a "1" image Pillow
+    # copies the colour where it is set instead of blending every pixel, the same pixels 10x
+    # faster. Hatching multiplies two masks, which wants "L".
+    mask = Image.new("L" if hatch_pt is not None else "1", (right - left, bottom - top), 0)
     draw = ImageDraw.Draw(mask)
     for part in rings:
         for k, ring in enumerate(part):
