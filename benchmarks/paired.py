@@ -158,10 +158,15 @@ def machine() -> str:
             memory = f", {kib / 1024 / 1024:.0f} GiB"
     except (OSError, ValueError, IndexError):
         pass
-    return (
+    line = (
         f"{model}, {os.cpu_count()} cores{memory}, {platform.system()} {platform.release()}, "
         f"Python {platform.python_version()}"
     )
+    if os.environ.get("PYTHONDONTWRITEBYTECODE"):
+        # The warm-up run cannot leave .pyc files: every module whose .pyc is missing or older
+        # than its source is compiled again in every timed run (0.1-0.2 s for sfap's own).
+        line += "; PYTHONDONTWRITEBYTECODE is set (stale .pyc files are recompiled in every run)"
+    return line
 
 
 def compare(

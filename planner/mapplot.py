@@ -38,6 +38,7 @@ from .maplayout import (
     header_text,
     lines_text,
     map_frame,
+    median,
     pass_legend_counts,
     scale_bar_length_m,
     shown_text,
@@ -247,7 +248,7 @@ def render_map_figure(
     if st_index.size:
         # dot size from the spacing of the dots drawn along their line, in points
         steps = np.hypot(np.diff(st.x_m[st_index]), np.diff(st.y_m[st_index]))
-        spacing_pt = float(np.median(steps)) * points_per_m if steps.size else 8.0
+        spacing_pt = median(steps) * points_per_m if steps.size else 8.0
         ax.scatter(
             st.x_m[st_index] - ox,
             st.y_m[st_index] - oy,

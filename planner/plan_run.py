@@ -8,11 +8,14 @@ import os
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from .errors import InputError
 from .plan import SurveyPlan
-from .sorties import Sortie
 from .spec import MissionSpec
+
+if TYPE_CHECKING:  # planner.sorties is imported only for a vehicle with an endurance
+    from .sorties import Sortie
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -53,10 +56,10 @@ class PlanRun:
 
     def summary(self) -> dict[str, object]:
         """summary.json's figures, with the sorties and the station resumed from."""
-        from .sorties import sorties_summary
-
         summary = self.plan.summary.as_dict()
         if self.sorties:
+            from .sorties import sorties_summary
+
             summary["sorties"] = sorties_summary(self.plan, self.sorties)
         if self.resumed_from_station is not None:
             summary["resumed_from_station"] = self.resumed_from_station
@@ -74,7 +77,6 @@ def plan_spec(
     the last station it reached) only what is left. Sorties when the spec's vehicle has an
     endurance."""
     from .resume import last_station_from_record, resume_plan
-    from .sorties import split_sorties
     from .spec import load_spec
     from .survey import plan_survey
 
@@ -91,5 +93,9 @@ def plan_spec(
             )
     if resume_from is not None:
         plan = resume_plan(plan, resume_from)
-    sorties = tuple(split_sorties(plan)) if spec.vehicle.endurance_s is not None else ()
+    sorties: tuple[Sortie, ...] = ()
+    if spec.vehicle.endurance_s is not None:
+        from .sorties import split_sorties
+
+        sorties = tuple(split_sorties(plan))
     return PlanRun(spec=spec, plan=plan, sorties=sorties, resumed_from_station=resume_from)

@@ -33,6 +33,14 @@ COMMANDS: dict[str, tuple[str, str]] = {
 }
 
 
+#: Commands whose arrays are small (a plan's stations, a camera table): numpy's OpenBLAS is
+#: loaded with one thread for them. With one per core it starts the others as numpy is
+#: imported, and they spin waiting for work none of these commands gives them: 40 ms of CPU
+#: and 40-60 ms of wall time of a small plan (benchmarks/plan_vs_flightplan.py). A value the
+#: user set is kept.
+ONE_BLAS_THREAD = frozenset({"plan", "gcp-plan", "cameras"})
+
+
 @runtime_checkable
 class Verdict(Protocol):
     """What a command that judges returns (``sfap check``: a CheckResult; ``sfap geotag``: a
@@ -86,6 +94,8 @@ class LazyGroup(click.Group):
         if cmd_name not in COMMANDS:
             return None
         module_name, _ = COMMANDS[cmd_name]
+        if cmd_name in ONE_BLAS_THREAD and "numpy" not in sys.modules:
+            os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
         module = importlib.import_module(f"sfap.commands.{module_name}")
         command: click.Command = module.command
         return command

@@ -251,15 +251,22 @@ def _pass_lookup(plan: SurveyPlan, pass_index: NDArray[np.int32]) -> NDArray[np.
     positions = {p.index: k for k, p in enumerate(plan.passes)}
     if pass_index.size == 0:
         return np.zeros(0, dtype=np.intp)
-    unknown = set(np.unique(pass_index).tolist()) - set(positions)
-    if unknown:
+    # A table over 0 .. the largest index; not np.unique, which imports numpy.ma (15 ms).
+    top = max(positions, default=-1)
+    known = np.zeros(top + 1, dtype=bool)
+    lookup = np.zeros(top + 1, dtype=np.intp)
+    for index, k in positions.items():
+        known[index] = True
+        lookup[index] = k
+    in_table = (pass_index >= 0) & (pass_index <= top)
+    held = np.zeros(pass_index.shape, dtype=bool)
+    held[in_table] = known[pass_index[in_table]]
+    if not held.all():
+        unknown = set(pass_index[~held].tolist())
         raise PlanningError(
             f"stations refer to pass {sorted(unknown)} that the plan does not hold "
             f"(passes: {sorted(positions)}); a planner bug: report it with the mission spec"
         )
-    lookup = np.zeros(max(positions) + 1, dtype=np.intp)
-    for index, k in positions.items():
-        lookup[index] = k
     return lookup[pass_index]
 
 

@@ -22,9 +22,11 @@ Google Earth draws ``absolute`` altitudes above its geoid (EGM96), the same refe
 
 from __future__ import annotations
 
+import copy
 import logging
 import math
 import os
+import re
 import xml.etree.ElementTree as ET
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
@@ -426,12 +428,71 @@ def kml_bytes(
 ) -> bytes:
     """The KML document of ``plan`` as UTF-8 bytes with an XML declaration."""
     root = kml_document(plan, max_stations=max_stations, home_alt_amsl_m=home_alt_amsl_m)
-    ET.register_namespace("", KML_NS)
-    ET.indent(root, space=" ")
-    # Serialised to text and encoded once: ElementTree's byte path writes through a
-    # TextIOWrapper one small piece at a time, 3x slower; the bytes are the same.
-    text = ET.tostring(root, encoding="unicode")
+    text = serialise(root)
     return b"<?xml version='1.0' encoding='utf-8'?>\n" + text.encode("utf-8") + b"\n"
+
+
+def serialise(root: ET.Element) -> str:
+    """``root`` as ElementTree writes it indented by one space with KML as the default
+    namespace (``ET.indent(root, space=" ")``, then ``ET.tostring(root, encoding="unicode")``),
+    the same text, in a third of the time: every tag of this document is in KML's namespace,
+    and no element has a tail before indenting, so the general writer's namespace pass and
+    checks are not needed. A tree outside that (or an attribute that would need escaping) is
+    handed to ElementTree itself. ``root`` is left as it was (not indented)."""
+    prefix = f"{{{KML_NS}}}"
+    cut = len(prefix)
+    parts: list[str] = []
+    write = parts.append
+
+    def element(elem: ET.Element, indent: str, declaration: str = "") -> bool:
+        tag = elem.tag
+        if not isinstance(tag, str) or not tag.startswith(prefix) or elem.tail:
+            return False
+        name = tag[cut:]
+        write("<" + name + declaration)
+        for key, value in elem.items():
+            plain = isinstance(key, str) and isinstance(value, str) and key[:1] != "{"
+            if not plain or _NEEDS_ESCAPE.search(value):
+                return False
+            write(f' {key}="{value}"')
+        text = elem.text
+        if text is not None and not isinstance(text, str):
+            return False
+        if len(elem):
+            inner = indent + " "
+            write(">" + (_escape_text(text) if text and text.strip() else inner))
+            last = len(elem) - 1
+            for k, child in enumerate(elem):
+                if not element(child, inner):
+                    return False
+                write(indent if k == last else inner)
+            write("</" + name + ">")
+        elif text:
+            write(">" + _escape_text(text) + "</" + name + ">")
+        else:
+            write(" />")
+        return True
+
+    if len(root) and element(root, "\n", f' xmlns="{KML_NS}"'):
+        return "".join(parts)
+    ET.register_namespace("", KML_NS)
+    indented = copy.deepcopy(root)
+    ET.indent(indented, space=" ")
+    return ET.tostring(indented, encoding="unicode")
+
+
+_NEEDS_ESCAPE = re.compile('[&<>"\r\n\t]')
+
+
+def _escape_text(text: str) -> str:
+    """Character data as ElementTree escapes it (&, < and >)."""
+    if "&" in text:
+        text = text.replace("&", "&amp;")
+    if "<" in text:
+        text = text.replace("<", "&lt;")
+    if ">" in text:
+        text = text.replace(">", "&gt;")
+    return text
 
 
 def write_kml(

@@ -7,7 +7,6 @@ from pathlib import Path
 import click
 
 from planner.plan_run import plan_spec
-from planner.sorties import sortie_folder
 
 from ..common import dumps_json, echo_table, json_option, overwrite_option, progress
 
@@ -134,6 +133,8 @@ def command(
                     f"trigger {p['trigger_distance_m']:.1f} m, {p['photo_count']:,} photos",
                 )
             )
+    if sorties:
+        from planner.sorties import sortie_folder  # only a vehicle with an endurance has sorties
     for sortie in sorties:
         s = sortie.plan.summary
         seconds = round(s.flight_time_s)

@@ -5,6 +5,9 @@ planned here, and its files are opened with the tools of the field (pymavlink's 
 from __future__ import annotations
 
 import json
+import os
+import subprocess
+import sys
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -178,3 +181,37 @@ def test_a_plan_no_vehicle_can_fly_says_so_on_the_terminal(tmp_path: Path) -> No
     assert "more than one battery" in result.stderr
     summary = json.loads((tmp_path / "q" / "summary.json").read_text())
     assert any("battery" in w for w in summary["warnings"])
+
+
+_THREADS_AFTER_NUMPY = """
+import os, sys
+from sfap.cli import cli
+cli.get_command(None, sys.argv[1])
+import numpy
+print(os.environ.get("OPENBLAS_NUM_THREADS"), len(os.listdir("/proc/self/task")))
+"""
+
+
+@pytest.mark.parametrize(
+    ("command", "user_value", "expected"),
+    [("plan", None, "1"), ("gcp-plan", None, "1"), ("plan", "2", "2"), ("check", None, None)],
+)
+def test_small_commands_load_openblas_with_one_thread(
+    command: str, user_value: str | None, expected: str | None
+) -> None:
+    """plan loads numpy's OpenBLAS with one thread (the process has no other thread once numpy
+    is imported, counted by Linux in /proc/self/task); a value the user set is kept, and the
+    commands with large arrays keep OpenBLAS's default."""
+    env = {k: v for k, v in os.environ.items() if k not in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS")}
+    if user_value is not None:
+        env["OPENBLAS_NUM_THREADS"] = user_value
+    out = subprocess.run(
+        [sys.executable, "-c", _THREADS_AFTER_NUMPY, command],
+        env=env,
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout.split()
+    assert out[0] == str(expected)
+    if expected == "1":
+        assert out[1] == "1"

@@ -9,6 +9,8 @@ plan was built from, and the pixels of the rendered map.
 
 from __future__ import annotations
 
+import copy
+import dataclasses
 import json
 import math
 import re
@@ -33,7 +35,7 @@ from planner.formats.geojson import (
     write_footprints_geojson,
     write_stations_geojson,
 )
-from planner.formats.kml import KML_NS, ordinal, write_kml
+from planner.formats.kml import KML_NS, ordinal, serialise, write_kml
 from planner.geo import LocalFrame, geodesic_distance_m
 from planner.maplayout import scale_bar_length_m
 from planner.mapplot import render_map_figure, render_map_png
@@ -397,6 +399,21 @@ def test_stations_geojson_positions_and_properties(plan: SurveyPlan, tmp_path: P
     assert d == pytest.approx(plan.passes[0].trigger_distance_m, rel=2e-3)  # UTM scale error
 
 
+@pytest.mark.parametrize("bad_index", [7, -1, 2**31 - 1])
+def test_stations_of_a_pass_the_plan_does_not_hold_are_refused(
+    plan: SurveyPlan, tmp_path: Path, bad_index: int
+) -> None:
+    """A station whose pass index is not one of the plan's passes (beyond them, negative) is a
+    planner bug named as such, and nothing is written."""
+    pass_index = plan.stations.pass_index.copy()
+    pass_index[len(pass_index) // 2] = bad_index
+    broken = dataclasses.replace(plan, stations=dataclasses.replace(plan.stations, pass_index=pass_index))
+    target = tmp_path / "stations.geojson"
+    with pytest.raises(PlanningError, match=rf"stations refer to pass \[{bad_index}\]"):
+        write_stations_geojson(broken, target)
+    assert not target.exists()
+
+
 def test_footprints_geojson_valid_ccw_and_at_the_stations(plan: SurveyPlan, tmp_path: Path) -> None:
     path = write_footprints_geojson(plan, tmp_path / "footprints.geojson")
     doc = json.loads(path.read_text(encoding="utf-8"))
@@ -582,6 +599,70 @@ def test_kml_structure_and_placemarks(plan: SurveyPlan, tmp_path: Path) -> None:
 
     top_names = [m.findtext(_k("name")) for m in doc.findall(_k("Placemark"))]
     assert top_names == ["Home", "Entry"]
+
+
+_TEXTS = hst.text(alphabet="ab &<>\"'\n\t\r\u00e9\u6f22", max_size=6)
+_PLAIN = hst.text(alphabet="ab -#\u00e9\u6f22", max_size=6)
+
+
+@hst.composite
+def _kml_trees(draw: hst.DrawFn, depth: int = 0) -> ET.Element:
+    """What kml_document builds: KML tags, plain attributes, texts (whitespace-only too)."""
+    element = ET.Element(f"{{{KML_NS}}}{draw(hst.sampled_from(['Folder', 'name', 'Placemark', 'Point']))}")
+    if draw(hst.booleans()):
+        element.set("id", draw(_PLAIN))
+    element.text = draw(hst.none() | _TEXTS | hst.just("   \n "))
+    if depth < 3:
+        element.extend(draw(hst.lists(_kml_trees(depth + 1), max_size=3)))
+    return element
+
+
+def _spoil(element: ET.Element, how: str, text: str) -> None:
+    """One thing kml_document never builds, for the general writer to take."""
+    if how == "tail":
+        element.tail = text or "x"
+    elif how == "escaped attribute":
+        element.set("id", text + "&")
+    elif how == "namespaced attribute":
+        element.set("{urn:other}a", text)
+    elif how == "other namespace":
+        element.tag = "{urn:other}x"
+    else:
+        element.tag = "plain"
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    children=hst.lists(_kml_trees(), max_size=4),
+    spoil=hst.none()
+    | hst.tuples(
+        hst.integers(0, 200),
+        hst.sampled_from(["tail", "escaped attribute", "namespaced attribute", "other namespace", "none"]),
+        _TEXTS,
+    ),
+)
+def test_kml_serialiser_writes_what_elementtree_writes(
+    children: list[ET.Element], spoil: tuple[int, str, str] | None
+) -> None:
+    """mission.kml's own writer against ElementTree's (indent by one space, KML the default
+    namespace) on random trees: texts and attributes that need escaping, whitespace-only texts,
+    tails, tags and attributes in another namespace or none; the tree is not changed."""
+    root = ET.Element(f"{{{KML_NS}}}kml")
+    doc = ET.SubElement(root, f"{{{KML_NS}}}Document")
+    doc.extend(children)
+    if spoil is not None:
+        elements = list(doc.iter())
+        _spoil(elements[spoil[0] % len(elements)], spoil[1], spoil[2])
+
+    def shape(e: ET.Element) -> tuple[object, ...]:
+        return (e.tag, e.text, e.tail, dict(e.attrib), [shape(c) for c in e])
+
+    before = shape(root)
+    expected_tree = copy.deepcopy(root)
+    ET.register_namespace("", KML_NS)
+    ET.indent(expected_tree, space=" ")
+    assert serialise(root) == ET.tostring(expected_tree, encoding="unicode")
+    assert shape(root) == before
 
 
 def test_kml_flight_path_follows_the_mission(plan: SurveyPlan, tmp_path: Path) -> None:

@@ -7,9 +7,12 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
-from planner.maplayout import pass_line_count
+from planner.maplayout import median, pass_line_count
 from planner.mapplot import render_map_figure
 from planner.spec import load_spec
 from planner.survey import plan_survey
@@ -108,3 +111,25 @@ def test_map_png_draws_every_camera_on_segment_where_it_lies(tmp_path: Path) -> 
     row, col = _pixel(frame, area_point.x - ox, area_point.y - oy, 130)
     around = png[row - 30 : row + 30, col - 30 : col + 30].reshape(-1, 3)
     assert (np.abs(around - (0xE3, 0xF1, 0xD4)).max(axis=1) <= 3).sum() > 100  # 256-colour palette
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    st.lists(
+        st.one_of(st.floats(allow_nan=False, allow_infinity=False, width=64), st.just(float("nan"))),
+        min_size=1,
+        max_size=40,
+    )
+)
+def test_median_is_numpy_median(values: list[float]) -> None:
+    """The map's median (without numpy.ma) is numpy's, bit for bit: odd and even counts, ties,
+    huge values whose sum overflows, NaN."""
+    expected = float(np.median(np.array(values)))
+    got = median(np.array(values))
+    assert (np.isnan(got) and np.isnan(expected)) or got == expected
+    assert np.signbit(got) == np.signbit(expected) or np.isnan(expected)
+
+
+def test_median_of_nothing_is_refused() -> None:
+    with pytest.raises(ValueError, match="no values"):
+        median(np.zeros(0))

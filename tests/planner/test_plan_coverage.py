@@ -79,3 +79,40 @@ def test_grid_and_boundary_points_lie_on_the_area() -> None:
     assert all(
         area.exterior.distance(Point(p)) < 1e-6 or area.interiors[0].distance(Point(p)) < 1e-6 for p in edge
     )
+
+
+@settings(max_examples=80, deadline=None)
+@given(
+    segments=runs(),
+    offset=st.sampled_from([0.0, 612_345.678, -4_321_987.25]),
+    u_min=st.floats(-30.0, -2.0),
+    u_max=st.floats(2.0, 30.0),
+    seed=st.integers(0, 2**16),
+)
+def test_counts_on_the_edges_of_the_frames_are_exact(
+    segments: list[Segment], offset: float, u_min: float, u_max: float, seed: int
+) -> None:
+    """Points placed on the edges of the frames (within a few ulps, where rounding decides),
+    at the coordinates of a UTM frame: the count is, point by point, the frames whose
+    inequalities hold as view_counts states them (pv in [v + v_min - 1e-9, v + v_max + 1e-9],
+    the station's u in [pu - u_max - 1e-9, pu - u_min + 1e-9]), asked of every frame in turn."""
+    rect = FrameRectangle(u_min_m=u_min, u_max_m=u_max, v_min_m=-20.0, v_max_m=20.0)
+    segments = [
+        Segment(row=s.row, v_m=s.v_m, u_first_m=s.u_first_m + offset, spacing_m=s.spacing_m, count=s.count)
+        for s in segments
+    ]
+    rng = np.random.default_rng(seed)
+    stations = np.concatenate([s.u_first_m + np.arange(s.count) * s.spacing_m for s in segments])
+    edges = np.concatenate([stations + u_max + 1e-9, stations + u_min - 1e-9, stations])
+    pu = rng.choice(edges, 400) + rng.integers(-3, 4, 400) * np.spacing(edges.max())
+    pu = np.concatenate([pu, rng.uniform(stations.min() - 50.0, stations.max() + 50.0, 200)])
+    pv = rng.choice([s.v_m for s in segments], len(pu)) + rng.choice([-20.0, 20.0, 0.0, 19.5], len(pu))
+    points = np.column_stack([pu, pv])
+    expected = np.zeros(len(points), np.int64)
+    for s in segments:
+        in_band = (pv >= s.v_m + rect.v_min_m - 1e-9) & (pv <= s.v_m + rect.v_max_m + 1e-9)
+        u = s.u_first_m + np.arange(s.count) * s.spacing_m
+        low = (pu - rect.u_max_m - 1e-9)[:, None]
+        high = (pu - rect.u_min_m + 1e-9)[:, None]
+        expected += in_band * ((u[None, :] >= low) & (u[None, :] <= high)).sum(axis=1)
+    assert view_counts(points, segments, rect).tolist() == expected.tolist()
