@@ -187,14 +187,21 @@ _THREADS_AFTER_NUMPY = """
 import os, sys
 from sfap.cli import cli
 cli.get_command(None, sys.argv[1])
+import gc
 import numpy
-print(os.environ.get("OPENBLAS_NUM_THREADS"), len(os.listdir("/proc/self/task")))
+print(os.environ.get("OPENBLAS_NUM_THREADS"), len(os.listdir("/proc/self/task")), gc.get_freeze_count())
 """
 
 
 @pytest.mark.parametrize(
     ("command", "user_value", "expected"),
-    [("plan", None, "1"), ("gcp-plan", None, "1"), ("plan", "2", "2"), ("check", None, None)],
+    [
+        ("plan", None, "1"),
+        ("gcp-plan", None, "1"),
+        ("geotag", None, "1"),
+        ("plan", "2", "2"),
+        ("check", None, None),
+    ],
 )
 def test_small_commands_load_openblas_with_one_thread(
     command: str, user_value: str | None, expected: str | None
@@ -215,3 +222,5 @@ def test_small_commands_load_openblas_with_one_thread(
     assert out[0] == str(expected)
     if expected == "1":
         assert out[1] == "1"
+    # The imports' objects are frozen out of the garbage collector's full collections.
+    assert int(out[2]) > 10_000
