@@ -19,6 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from planner.errors import InputError
+from planner.stats import median
 
 from .errors import GeotagError
 from .exif import ImageTags
@@ -121,7 +122,7 @@ def offset_from_exif_gps(tags: Sequence[ImageTags]) -> float | None:
         for t in tags
         if t.capture_time_s is not None and t.gps_time_utc_s is not None
     ]
-    return float(np.median(diffs)) if diffs else None
+    return float(median(diffs)) if diffs else None
 
 
 @dataclass(frozen=True)
@@ -189,7 +190,7 @@ def offset_cost_warning(offset: float, source: OffsetSource, speeds_m_s: Sequenc
     moving = [s for s in speeds_m_s if s > 0.5]
     if not moving:
         return None
-    speed = float(np.median(moving))
+    speed = float(median(moving))
     how = {
         OffsetSource.GIVEN: "given (--offset-s)",
         OffsetSource.EXIF_GPS: "from the frames' own GPS time stamps",
@@ -213,7 +214,7 @@ def sync_windows_with_events(
     position allows the offsets that put the frame on one of the events taken there."""
     windows: list[list[tuple[float, float]]] = []
     steps = np.diff(np.sort(events.time_utc_s))
-    half_step = 0.5 * float(np.median(steps)) if steps.size else 1.0
+    half_step = 0.5 * float(median(steps)) if steps.size else 1.0
     for point, capture_s in sync_capture:
         if point.time_utc_s is not None:
             windows.append([(capture_s - point.time_utc_s, SYNC_TIME_ACCURACY_S)])
@@ -278,4 +279,4 @@ def sync_offset_by_track(sync_capture: Sequence[tuple[SyncPoint, float]], log: F
                     f"the sync points disagree: {a[2]} gives a camera clock offset of {a[0]:+.1f} s, "
                     f"{b[2]} {b[0]:+.1f} s; check them"
                 )
-    return float(np.median([e[0] for e in estimates]))
+    return float(median([e[0] for e in estimates]))

@@ -30,6 +30,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from planner.stats import median
+
 F64 = NDArray[np.float64]
 
 WGS84_A_M = 6_378_137.0
@@ -76,8 +78,8 @@ class LocalPlane:
         lon = np.asarray(lon_deg, float)
         lat = np.asarray(lat_deg, float)
         first = float(lon.flat[0])
-        lon0 = float(_wrap_deg(np.asarray(first + float(np.median(_wrap_deg(lon - first))))))
-        return cls.at(lon0, float(np.median(lat)))
+        lon0 = float(_wrap_deg(np.asarray(first + float(median(_wrap_deg(lon - first))))))
+        return cls.at(lon0, float(median(lat)))
 
     def to_xy(self, lon_deg: ArrayLike, lat_deg: ArrayLike) -> tuple[F64, F64]:
         """(east, north) metres from the origin."""

@@ -69,6 +69,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from planner.stats import median
+
 from .errors import GeotagError
 
 F64 = NDArray[np.float64]
@@ -138,7 +140,7 @@ class Matching:
 def _median_interval_s(times: F64) -> float:
     steps = np.diff(np.sort(times))
     steps = steps[steps > 0]
-    return float(np.median(steps)) if steps.size else 1.0
+    return float(median(steps)) if steps.size else 1.0
 
 
 def _candidate_offsets(
@@ -174,7 +176,7 @@ def _candidate_offsets(
         if taken[k]:
             continue
         window = diffs[lo[k] : hi[k]]
-        centre = float(np.median(window))
+        centre = float(median(window))
         taken[lo[k] : hi[k]] = True  # this window is a candidate, or too close to one
         at = bisect.bisect_left(ordered, centre)
         if (at > 0 and centre - ordered[at - 1] <= tol) or (
@@ -288,10 +290,10 @@ def _theil_sen(x: F64, y: F64) -> tuple[float, float]:
     dx = x[:, None] - x[None, :]
     dy = y[:, None] - y[None, :]
     mask = dx > 0
-    slope = float(np.median(dy[mask] / dx[mask]))
+    slope = float(median(dy[mask] / dx[mask]))
     fitted = y - slope * x
-    resid = fitted - np.median(fitted)
-    sigma = 1.4826 * float(np.median(np.abs(resid)))
+    resid = fitted - median(fitted)
+    sigma = 1.4826 * float(median(np.abs(resid)))
     spread = float(np.std(x))
     se = sigma / (spread * math.sqrt(x.size)) if spread > 0 else math.inf
     return slope, se
@@ -401,7 +403,7 @@ def match_frames_to_events(
                 slope, se = _theil_sen(ej - t_ref, diffs)
                 if abs(slope) > 3.0 * se:
                     new_drift = slope
-            new_offset = float(np.median(diffs - new_drift * (ej - t_ref)))
+            new_offset = float(median(diffs - new_drift * (ej - t_ref)))
             predicted = e + new_offset + new_drift * (e - t_ref)
             realigned = align(predicted, tol)
             offset, drift = new_offset, new_drift
@@ -414,7 +416,7 @@ def match_frames_to_events(
         if not pairs:
             return math.inf
         r = np.array([f[a] - e[b] - offset - drift * (e[b] - t_ref) for a, b in pairs])
-        return 1.4826 * float(np.median(np.abs(r - np.median(r))))
+        return 1.4826 * float(median(np.abs(r - median(r))))
 
     def chi2(chosen: list[tuple[int, int]], o: float, d: float, sigma: float) -> float:
         """The alignment cost of the module docstring in units of the timing noise ``sigma``:
@@ -529,7 +531,7 @@ def match_frames_to_events(
     pair_e = np.array([e_order[b] for _, b in pairs], dtype=np.int64)
     predicted_pairs = e_in[pair_e] + offset + drift * (e_in[pair_e] - t_ref)
     residuals = f_in[pair_f] - predicted_pairs
-    mad = 1.4826 * float(np.median(np.abs(residuals - np.median(residuals))))
+    mad = 1.4826 * float(median(np.abs(residuals - median(residuals))))
     if abs(offset) > 86_400.0:
         warnings.append(
             f"the camera clock is {offset / 86_400.0:+.2f} days off the log; check that the log is "

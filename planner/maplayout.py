@@ -59,23 +59,6 @@ def thin(n: int, max_count: int) -> tuple[NDArray[np.int64], int]:
     return np.arange(0, n, step, dtype=np.int64), step
 
 
-def median(values: NDArray[np.float64]) -> float:
-    """``float(np.median(values))`` of a non-empty 1-D array, the same number (the middle
-    value, or the mean of the two middle ones; NaN when one is NaN), without np.median's NaN
-    check, which imports numpy.ma (15 ms of a small plan)."""
-    ordered = np.sort(np.asarray(values, dtype=np.float64))
-    n = len(ordered)
-    if n == 0:
-        raise ValueError("the median of no values")
-    if np.isnan(ordered[-1]):  # np.sort puts NaN last
-        return math.nan
-    mid = n // 2
-    # numpy takes the mean of the middle one or two: a sum that starts from +0.0 (so -0.0 -> 0.0)
-    if n % 2:
-        return float(0.0 + ordered[mid])
-    return float((0.0 + ordered[mid - 1] + ordered[mid]) / 2.0)
-
-
 def pass_line_count(flight_pass: FlightPass, tolerance_m: float = 0.01) -> int:
     """How many lines (rows) a pass flies: its camera-on segments grouped by their offset across
     the pass direction (a line that crosses a hole or a concave bay is flown as two or more

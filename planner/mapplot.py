@@ -38,7 +38,6 @@ from .maplayout import (
     header_text,
     lines_text,
     map_frame,
-    median,
     pass_legend_counts,
     scale_bar_length_m,
     shown_text,
@@ -46,6 +45,7 @@ from .maplayout import (
 )
 from .outputs import atomic_write_bytes
 from .plan import PassKind, SurveyPlan
+from .stats import median
 
 if TYPE_CHECKING:  # matplotlib is imported when a map is drawn (about 0.2 s), not with the module
     from matplotlib.figure import Figure

@@ -31,7 +31,6 @@ from .maplayout import (
     caption_text,
     header_text,
     map_frame,
-    median,
     pass_legend_counts,
     scale_bar_length_m,
 )
@@ -39,6 +38,7 @@ from .maplayout import lines_text as _lines_text
 from .maplayout import shown_text as _shown
 from .maplayout import thin as _thin
 from .plan import PassKind, SurveyPlan
+from .stats import median
 
 _SUPERSAMPLE = 2
 _Colour = tuple[int, int, int] | tuple[int, int, int, int]

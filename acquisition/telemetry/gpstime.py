@@ -22,6 +22,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from planner.stats import median
+
 from ..errors import TelemetryError
 
 #: POSIX time of the GPS epoch, 1980-01-06T00:00:00 UTC.
@@ -176,12 +178,12 @@ def fit_boot_clock(boot_s: ArrayLike, utc_s: ArrayLike, *, min_span_for_rate_s: 
     n = int(b.shape[0])
     if n == 0:
         raise TelemetryError("no (boot time, UTC) pair to map the boot clock onto UTC")
-    ref = float(np.median(b))
+    ref = float(median(b))
     # Work on offsets relative to a reference so that float64 keeps the microseconds.
-    utc0 = float(np.floor(np.median(u)))
+    utc0 = float(np.floor(median(u)))
     d = (u - utc0) - (b - ref)
-    med = float(np.median(d))
-    mad = float(np.median(np.abs(d - med)))
+    med = float(median(d))
+    mad = float(median(np.abs(d - med)))
     keep = np.abs(d - med) <= max(5.0 * 1.4826 * mad, 0.005)
     bk, dk = b[keep] - ref, d[keep]
     rate = 1.0

@@ -12,9 +12,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from planner.maplayout import median, pass_line_count
+from planner.maplayout import pass_line_count
 from planner.mapplot import render_map_figure
 from planner.spec import load_spec
+from planner.stats import median
 from planner.survey import plan_survey
 
 MISSIONS = sorted((Path(__file__).resolve().parents[2] / "missions").glob("*.toml"))
