@@ -498,9 +498,7 @@ def _padded(segment: bytes, growth: int) -> bytes:
     packet's padding, the whitespace before ``<?xpacket end=...?>`` that the XMP specification
     reserves for edits in place; the segment unchanged when its padding is too short."""
     end = segment.rfind(b"<?xpacket end=")
-    start = end
-    while start > 4 and segment[start - 1] in _WHITESPACE:
-        start -= 1
+    start = max(4, len(segment[:end].rstrip(_WHITESPACE)))
     if growth == 0 or end < 0 or end - start < growth:
         return segment
     if growth > 0:
