@@ -57,7 +57,7 @@ class SyncPoint:
         if (
             self.lat_deg is not None
             and self.lon_deg is not None
-            and not (-90.0 <= self.lat_deg <= 90.0 and -180.0 <= self.lon_deg <= 180.0)
+            and not (-90.0 < self.lat_deg < 90.0 and -180.0 <= self.lon_deg <= 180.0)
         ):
             raise InputError(
                 f"sync position {self.lat_deg}, {self.lon_deg} for {self.frame} is not a latitude, "
@@ -107,11 +107,6 @@ def parse_sync_position(text: str) -> SyncPoint:
         raise InputError(f"sync position {value!r} for {frame}: LAT,LON must be numbers (degrees)") from None
     if not (math.isfinite(lat) and math.isfinite(lon)):
         raise InputError(f"sync position {value!r} for {frame}: not finite")
-    if not (-90.0 < lat < 90.0 and -180.0 <= lon <= 180.0):
-        raise InputError(
-            f"sync position {value!r} for {frame}: latitude must be within -90..90 and longitude "
-            f"within -180..180 degrees (LAT,LON, in that order)"
-        )
     return SyncPoint(frame=frame.strip(), lat_deg=lat, lon_deg=lon)
 
 
