@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import calendar
 import contextlib
-import errno
 import logging
 import math
 import os
@@ -49,7 +48,9 @@ from planner.errors import OutputExistsError
 from planner.outputs import atomic_file, process_umask
 
 from . import jpeg_meta
+from .copy_worker import copy_range, identity
 from .errors import GeotagError
+from .frame_copies import Copied, FrameCopies
 
 if TYPE_CHECKING:
     import pyexiv2
@@ -383,10 +384,6 @@ class HeaderSnapshot:
     xmp: dict[str, Any]
 
 
-def _identity(stat: os.stat_result) -> tuple[int, int, int, int]:
-    return (stat.st_dev, stat.st_ino, stat.st_size, stat.st_mtime_ns)
-
-
 def _read_file_maps(
     path: str | os.PathLike[str],
 ) -> tuple[dict[str, Any], dict[str, Any], int | None, int | None, HeaderSnapshot | None]:
@@ -403,7 +400,7 @@ def _read_file_maps(
             split = _split_header(lambda offset, n: os.pread(fd, n, offset), stat.st_size, str(path))
             exif, xmp, width, height = jpeg_meta.header_maps(split.header)
             seen = HeaderSnapshot(
-                identity=_identity(stat),
+                identity=identity(stat),
                 sos_offset=split.sos_offset,
                 sos_segment=split.sos_segment,
                 exif=exif,
@@ -837,31 +834,10 @@ def geotag_bytes(data: bytes, tag: GeoTag, *, name: str = "<bytes>") -> bytes:
     return _compose_header(split, name, _geotag_change(tag)) + data[split.sos_offset :]
 
 
-def _copy_range(src_fd: int, dst_fd: int, offset: int, count: int) -> None:
-    """Copy ``count`` bytes of ``src_fd`` from ``offset`` to ``dst_fd``'s position, in the kernel."""
-    copy_file_range = getattr(os, "copy_file_range", None)
-    while count > 0:
-        try:
-            if copy_file_range is not None:
-                done = copy_file_range(src_fd, dst_fd, count, offset)
-            else:  # pragma: no cover - Python < 3.8 or not Linux
-                done = os.sendfile(dst_fd, src_fd, offset, count)
-        except OSError as error:
-            if error.errno not in (errno.EXDEV, errno.ENOSYS, errno.EINVAL, errno.EOPNOTSUPP):
-                raise
-            # Filesystems (or kernels) that refuse an in-kernel copy between these two files.
-            copy_file_range = None
-            done = os.sendfile(dst_fd, src_fd, offset, count)
-        if done == 0:
-            raise GeotagError(f"the source file shrank while it was copied ({count} bytes missing)")
-        offset += done
-        count -= done
-
-
 def _split_seen(fd: int, stat: os.stat_result, seen: HeaderSnapshot | None) -> _Split | None:
     """The header as ``seen`` found it, read in one call, when the file is still the one it
     read (same identity, and the SOS segment where it was); else None."""
-    if seen is None or _identity(stat) != seen.identity:
+    if seen is None or identity(stat) != seen.identity:
         return None
     end = seen.sos_offset + len(seen.sos_segment)
     data = os.pread(fd, end, 0)
@@ -883,13 +859,32 @@ def _write_out(out_fd: int, header: bytes, src_fd: int, split: _Split) -> None:
     (a third less kernel time than a copy shifted by a few bytes), and the header written over
     its first bytes."""
     if len(header) == split.sos_offset:
-        _copy_range(src_fd, out_fd, 0, split.size)
+        copy_range(src_fd, out_fd, 0, split.size)
         if os.pwrite(out_fd, header, 0) != len(header):
             raise GeotagError("the new header could not be written whole")
         return
     if os.write(out_fd, header) != len(header):
         raise GeotagError("the new header could not be written whole")
-    _copy_range(src_fd, out_fd, split.sos_offset, split.size - split.sos_offset)
+    copy_range(src_fd, out_fd, split.sos_offset, split.size - split.sos_offset)
+
+
+def _write_over_copy(target: Path, header: bytes, src_fd: int, split: _Split, copied: Copied) -> None:
+    """The new header written over a byte copy of the source at ``target``: over its first bytes
+    when it has the old header's length, else the copy rewritten whole (and a file reserved
+    empty, written whole). The file is removed when that fails (it holds the frame without its
+    tags)."""
+    try:
+        with target.open("r+b", buffering=0) as out:
+            if copied.identity is not None and len(header) == split.sos_offset:
+                if os.pwrite(out.fileno(), header, 0) != len(header):
+                    raise GeotagError("the new header could not be written whole")
+            else:
+                out.truncate(0)
+                _write_out(out.fileno(), header, src_fd, split)
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            target.unlink()
+        raise
 
 
 def _has_eoi(fd: int, split: _Split, name: str) -> bool:
@@ -918,12 +913,50 @@ def _write_file(
     check_end: bool = True,
     fast: FastChange | None = None,
     seen: HeaderSnapshot | None = None,
+    copied: Copied | None = None,
 ) -> tuple[Path, list[str]]:
     """``src`` with its header changed by ``change`` written to ``dst``; (path, warnings).
 
     ``fast(header, maps)``, when given, makes the same change without exiv2
     (:mod:`acquisition.jpeg_meta`); a header it does not handle goes to exiv2. ``seen``: what an
-    earlier read of ``src`` saw (:class:`HeaderSnapshot`), used while the file is the same."""
+    earlier read of ``src`` saw (:class:`HeaderSnapshot`), used while the file is the same.
+    ``copied``: a byte copy of ``src`` already at ``dst`` (:mod:`acquisition.frame_copies`),
+    written over when it is of the file as it is now, else removed and ``dst`` written whole."""
+    try:
+        return _write_file_unguarded(
+            src,
+            dst,
+            change,
+            overwrite=overwrite,
+            atomic=atomic,
+            check_end=check_end,
+            fast=fast,
+            seen=seen,
+            copied=copied,
+        )
+    except BaseException:
+        if copied is not None:  # the untagged copy must not stay where the tagged frame belongs
+            _remove_copy(copied)
+        raise
+
+
+def _remove_copy(copied: Copied) -> None:
+    with contextlib.suppress(FileNotFoundError):
+        copied.path.unlink()
+
+
+def _write_file_unguarded(
+    src: str | os.PathLike[str],
+    dst: str | os.PathLike[str],
+    change: Any,
+    *,
+    overwrite: bool,
+    atomic: bool,
+    check_end: bool,
+    fast: FastChange | None,
+    seen: HeaderSnapshot | None,
+    copied: Copied | None,
+) -> tuple[Path, list[str]]:
     name = str(src)
     warnings: list[str] = []
     same = os.path.abspath(src) == os.path.abspath(dst)
@@ -944,7 +977,15 @@ def _write_file(
                 log.debug("%s: tags written by exiv2 (%s)", name, error)
         if header is None:
             header = _compose_header(split, name, change)
-        if atomic or same:
+        # A byte copy already at the target is used when it is of the file as it is now.
+        if copied is not None and (
+            atomic or same or copied.path != target or copied.identity not in (None, identity(stat))
+        ):
+            _remove_copy(copied)  # of another version of the file, or meant for another path
+            copied = None
+        if copied is not None:
+            _write_over_copy(target, header, fd, split, copied)
+        elif atomic or same:
             with atomic_file(target, overwrite=overwrite or same, buffering=0) as out:
                 _write_out(out.fileno(), header, fd, split)
         else:
@@ -1027,7 +1068,7 @@ class GeotagWriteResult:
         return self.error is None
 
 
-def _run_job(job: GeotagJob, overwrite: bool, atomic: bool) -> GeotagWriteResult:
+def _run_job(job: GeotagJob, overwrite: bool, atomic: bool, copies: FrameCopies | None) -> GeotagWriteResult:
     try:
         _, warnings = _write_file(
             job.src,
@@ -1037,6 +1078,7 @@ def _run_job(job: GeotagJob, overwrite: bool, atomic: bool) -> GeotagWriteResult
             atomic=atomic,
             fast=_geotag_fast(job.tag),
             seen=job.seen,
+            copied=None if copies is None else copies.take(job.src),
         )
     except (GeotagError, OSError) as error:
         return GeotagWriteResult(src=job.src, dst=job.dst, error=str(error))
@@ -1050,9 +1092,12 @@ def write_geotags(
     overwrite: bool = False,
     atomic: bool = True,
     progress: Callable[[int], None] | None = None,
+    copies: FrameCopies | None = None,
 ) -> list[GeotagWriteResult]:
     """Write many frames, ``workers`` at a time (default: the CPUs this process may use, at most 4).
 
+    ``copies``: the frames already copied byte for byte to their destinations
+    (:mod:`acquisition.frame_copies`); each job takes its copy and writes the header over it.
     A frame that cannot be written does not stop the others: its result carries the error.
     Results come back in the order of ``jobs``; ``progress(n)`` is called with the number done.
     Threads suffice: the copy runs in the kernel without the GIL, and exiv2's share is small.
@@ -1063,19 +1108,23 @@ def write_geotags(
     if workers < 1:
         raise GeotagError(f"workers is {workers}; give 1 or more")
     process_umask()  # read (it is set and reset) before any thread creates a file
-    results: list[GeotagWriteResult] = []
-    if workers == 1 or len(job_list) < 2:
-        for n, job in enumerate(job_list, start=1):
-            results.append(_run_job(job, overwrite, atomic))
+    # Against a copier, the frames it reaches last first (see acquisition.frame_copies).
+    order = list(range(len(job_list))) if copies is None else copies.writing_order([j.src for j in job_list])
+
+    def run(k: int) -> GeotagWriteResult:
+        return _run_job(job_list[k], overwrite, atomic, copies)
+
+    results: dict[int, GeotagWriteResult] = {}
+    with contextlib.ExitStack() as stack:
+        if workers == 1 or len(job_list) < 2:
+            outcomes: Iterable[GeotagWriteResult] = map(run, order)
+        else:
+            outcomes = stack.enter_context(ThreadPoolExecutor(max_workers=workers)).map(run, order)
+        for n, (k, result) in enumerate(zip(order, outcomes, strict=True), start=1):
+            results[k] = result
             if progress is not None:
                 progress(n)
-        return results
-    with ThreadPoolExecutor(max_workers=workers) as pool:
-        for n, result in enumerate(pool.map(lambda j: _run_job(j, overwrite, atomic), job_list), start=1):
-            results.append(result)
-            if progress is not None:
-                progress(n)
-    return results
+    return [results[k] for k in range(len(job_list))]
 
 
 def strip_gps(

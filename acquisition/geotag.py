@@ -4,10 +4,11 @@
 (:mod:`acquisition.matching`), places them on the track (:mod:`acquisition.interpolation`, with
 the camera attitude from :mod:`acquisition.attitude`), writes the tags and the sidecars, and
 reports every frame (:mod:`acquisition.geotag_results`). It is a pipeline of named steps over
-the library, each a function: the card's frames and their tags (:mod:`acquisition.geotag_frames`),
-the camera clock (:func:`_set_clock`: matched to events, or from sync points and the frames' GPS
-time, :mod:`acquisition.geotag_offset`), the frames placed and those that cannot be
-(:mod:`acquisition.geotag_placement`), and the outputs (:mod:`acquisition.geotag_outputs`).
+the library, each a function: the card's frames (:mod:`acquisition.card`) and their tags
+(:mod:`acquisition.geotag_frames`), the camera clock (:func:`_set_clock`: matched to events, or
+from sync points and the frames' GPS time, :mod:`acquisition.geotag_offset`), the frames placed
+and those that cannot be (:mod:`acquisition.geotag_placement`), and the outputs
+(:mod:`acquisition.geotag_outputs`).
 
 Placing frames
 --------------
@@ -30,7 +31,7 @@ competing offsets, unless ``offset_s`` or a sync point
 settles it.
 
 Cards: the image folder is read recursively (a DCIM folder with 100CANON, 101CANON...); names
-that repeat across folders are kept apart (:func:`acquisition.geotag_frames.output_names`,
+that repeat across folders are kept apart (:func:`acquisition.card.output_names`,
 ``100CANON_IMG_0001.JPG``).
 
 Camera attitude is written as Pix4D ``Camera:Yaw/Pitch/Roll`` in the convention of
@@ -48,17 +49,18 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from planner.outputs import StagedOutputDir
+
+from .card import output_names, prepare_images
 from .errors import GeotagError
+from .frame_copies import FrameCopies
 from .geotag_frames import (
     Frame,
-    output_names,
-    prepare_images,
     read_frames,
     sync_capture_times,
     timed_frames,
 )
 from .geotag_offset import (
-    SyncPoint,
     offset_from_exif_gps,
     sync_offset_by_track,
     sync_windows_with_events,
@@ -72,6 +74,7 @@ from .geotag_results import (
     OffsetSource,
 )
 from .matching import match_frames_to_events
+from .sync_points import SyncPoint
 from .telemetry.model import CameraEvents, FlightLog
 
 logger = logging.getLogger(__name__)
@@ -95,17 +98,21 @@ def geotag_images(
     overwrite: bool = False,
     progress: ProgressCallback | None = None,
     options: GeotagOptions | None = None,
+    staging: StagedOutputDir | None = None,
+    copies: FrameCopies | None = None,
 ) -> GeotagResult:
     """Geotag every JPEG under ``image_dir`` (recursively) from ``log``; results in ``out_dir``.
 
     ``out_dir`` receives the tagged copies (unless ``in_place``), the sidecars (``geo.txt``,
     ``pix4d_geolocation.csv``, ``cameras.geojson``) and ``geotag_report.json``; it is built in a
     staging folder and moved into place whole. Names that repeat across folders are kept apart
-    (:func:`~acquisition.geotag_frames.output_names`). ``offset_s``: camera clock minus UTC,
+    (:func:`~acquisition.card.output_names`). ``offset_s``: camera clock minus UTC,
     seconds, if known. ``sync``: frames whose time or position the crew knows, to find or check
     the offset. ``in_place`` rewrites the originals, after copying each to ``backup_dir``
     (required). ``dry_run`` writes nothing. Frames that cannot be placed are reported, never
-    written.
+    written. ``staging``: the output's staging folder when the caller began it, with ``copies``
+    of the frames being made into it (:mod:`acquisition.frame_copies`); the caller stops those and
+    removes the folder if this raises.
 
     Raises :class:`GeotagError` when the frames and events cannot be reconciled, or when their
     alignment is ambiguous (another camera clock offset fits nearly as well) and neither
@@ -184,6 +191,8 @@ def geotag_images(
             warn=warnings.extend,
             summary=result,
             seen={str(fr.path): fr.seen for fr in frames if fr.seen is not None},
+            staging=staging,
+            copies=copies,
         )
     report(total, total)
     return result(final, outputs)

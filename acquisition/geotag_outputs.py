@@ -10,9 +10,10 @@ from pathlib import Path
 from typing import Any
 
 from planner.errors import OutputExistsError
-from planner.outputs import atomic_write_text, staged_output_dir
+from planner.outputs import StagedOutputDir, atomic_write_text, staged
 
 from . import exif, sidecars
+from .frame_copies import FrameCopies
 from .geotag_results import REPORT_NAME, FrameResult, FrameStatus, GeotagResult, report_json
 
 
@@ -47,9 +48,14 @@ def write_outputs(
     warn: Callable[[Iterable[str]], None],
     summary: Callable[[list[FrameResult], list[str]], GeotagResult],
     seen: Mapping[str, exif.HeaderSnapshot] | None = None,
+    staging: StagedOutputDir | None = None,
+    copies: FrameCopies | None = None,
 ) -> tuple[list[FrameResult], list[str]]:
     """Write tagged frames, sidecars and the report; returns the frames with their output paths.
-    ``seen``: each source path's header as read (:class:`acquisition.exif.HeaderSnapshot`)."""
+    ``seen``: each source path's header as read (:class:`acquisition.exif.HeaderSnapshot`).
+    ``staging``: the output's staging folder, when begun by the caller, and the ``copies`` of the
+    frames being made into it (:mod:`acquisition.frame_copies`): each written frame takes its
+    copy, the others' are removed before the folder is moved into place."""
     seen = seen or {}
     to_write = [f for f in frames if f.placed]
     written: list[FrameResult] = []
@@ -63,7 +69,8 @@ def write_outputs(
                     f"backup {target} exists; pass --overwrite or choose another --backup-dir"
                 )
             shutil.copy2(frame.source_path, target)
-    with staged_output_dir(out_dir, overwrite=overwrite) as staging:
+    with staged(staging or StagedOutputDir(out_dir, overwrite=overwrite)) as stage:
+        folder = stage.path
         by_path: dict[str, FrameResult] = {}
         # In place: each original is replaced atomically (synced). Copies go plainly into the
         # staging folder, which is moved into place whole at the end. Frames are written a few at
@@ -71,13 +78,19 @@ def write_outputs(
         jobs = [
             exif.GeotagJob(
                 src=frame.source_path,
-                dst=frame.source_path if in_place else str(staging / frame.name),
+                dst=frame.source_path if in_place else str(folder / frame.name),
                 tag=_geotag_of(frame),
                 seen=seen.get(frame.source_path),
             )
             for frame in to_write
         ]
-        outcomes = exif.write_geotags(jobs, overwrite=in_place, atomic=in_place, progress=report)
+        try:
+            outcomes = exif.write_geotags(
+                jobs, overwrite=in_place, atomic=in_place, progress=report, copies=copies
+            )
+        finally:
+            if copies is not None:  # the worker stopped before the folder is moved or removed
+                copies.finish()
         for frame, outcome in zip(to_write, outcomes, strict=True):
             final_path = Path(frame.source_path) if in_place else out_dir / frame.name
             if outcome.written:
@@ -106,8 +119,8 @@ def write_outputs(
             for f in placed
             if f.lat_deg is not None and f.lon_deg is not None
         ]
-        sidecar_paths = sidecars.write_all(staging, rows)
+        sidecar_paths = sidecars.write_all(folder, rows)
         outputs = [str(out_dir / p.name) for p in sidecar_paths] + [str(out_dir / REPORT_NAME)]
         result = summary(written, outputs)
-        atomic_write_text(staging / REPORT_NAME, report_json(result))
+        atomic_write_text(folder / REPORT_NAME, report_json(result))
     return written, outputs

@@ -2,8 +2,9 @@
 
 - :func:`atomic_file` (a file written in a with-block), :func:`atomic_write_bytes` /
   :func:`atomic_write_text`: one file, via a temporary file in the same folder and ``os.replace``.
-- :func:`staged_output_dir`: a whole output folder, built in a temporary sibling folder and
-  moved into place only when everything in it was written.
+- :func:`staged_output_dir` (:class:`StagedOutputDir` when the staging must begin early): a whole
+  output folder, built in a temporary sibling folder and moved into place only when everything in
+  it was written.
 - :func:`json_safe`: a value made fit for strict JSON (every JSON file and ``--json`` output).
 
 Nothing is overwritten unless the caller passes ``overwrite=True`` (the CLI's ``--overwrite``).
@@ -88,29 +89,64 @@ def check_output_dir(target: str | os.PathLike[str], *, overwrite: bool) -> Path
     return path
 
 
+class StagedOutputDir:
+    """An output folder built in a temporary sibling folder (``path``) and moved into place whole
+    by :meth:`commit`; :meth:`discard` removes it and leaves ``target`` as it was.
+
+    For a job whose staging must begin before the code that fills it is ready (``sfap geotag``
+    starts copying the frames while it reads the log, :mod:`acquisition.frame_copies`); otherwise
+    use :func:`staged_output_dir`."""
+
+    def __init__(self, target: str | os.PathLike[str], *, overwrite: bool = False) -> None:
+        self.final = check_output_dir(target, overwrite=overwrite).resolve()
+        self.final.parent.mkdir(parents=True, exist_ok=True)
+        self.path = Path(
+            tempfile.mkdtemp(prefix=f".{self.final.name}.", suffix=".staging", dir=self.final.parent)
+        )
+        os.chmod(self.path, 0o777 & ~process_umask())
+        self.ended = False
+
+    def commit(self) -> None:
+        """Move the staging folder into place (replacing ``target`` when it exists)."""
+        if self.ended:
+            raise RuntimeError(f"{self.path} was already committed or discarded")
+        self.ended = True
+        final = self.final
+        if final.exists():
+            backup = Path(tempfile.mkdtemp(prefix=f".{final.name}.", suffix=".old", dir=final.parent))
+            os.rmdir(backup)
+            os.replace(final, backup)
+            os.replace(self.path, final)
+            shutil.rmtree(backup, ignore_errors=True)
+        else:
+            os.replace(self.path, final)
+
+    def discard(self) -> None:
+        """Remove the staging folder (no-op once committed or discarded)."""
+        if not self.ended:
+            self.ended = True
+            shutil.rmtree(self.path, ignore_errors=True)
+
+
 @contextlib.contextmanager
 def staged_output_dir(target: str | os.PathLike[str], *, overwrite: bool = False) -> Iterator[Path]:
     """Yield a temporary folder; on success it replaces ``target`` as a whole.
 
     On any exception the temporary folder is removed and ``target`` is left as it was.
     """
-    final = check_output_dir(target, overwrite=overwrite).resolve()
-    final.parent.mkdir(parents=True, exist_ok=True)
-    staging = Path(tempfile.mkdtemp(prefix=f".{final.name}.", suffix=".staging", dir=final.parent))
-    os.chmod(staging, 0o777 & ~process_umask())
+    with staged(StagedOutputDir(target, overwrite=overwrite)) as staging:
+        yield staging.path
+
+
+@contextlib.contextmanager
+def staged(staging: StagedOutputDir) -> Iterator[StagedOutputDir]:
+    """``staging`` committed when the block ends without error, discarded on any exception."""
     try:
         yield staging
     except BaseException:
-        shutil.rmtree(staging, ignore_errors=True)
+        staging.discard()
         raise
-    if final.exists():
-        backup = Path(tempfile.mkdtemp(prefix=f".{final.name}.", suffix=".old", dir=final.parent))
-        os.rmdir(backup)
-        os.replace(final, backup)
-        os.replace(staging, final)
-        shutil.rmtree(backup, ignore_errors=True)
-    else:
-        os.replace(staging, final)
+    staging.commit()
 
 
 def json_safe(value: Any) -> Any:

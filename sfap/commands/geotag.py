@@ -4,20 +4,26 @@ from __future__ import annotations
 
 import math
 import sys
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 
-from acquisition.geotag import geotag_images
-from acquisition.geotag_frames import prepare_images
-from acquisition.geotag_offset import SyncPoint, parse_sync_position, parse_sync_time
-from acquisition.geotag_results import FrameStatus, GeotagOptions, GeotagResult, report_json
-from acquisition.telemetry import read_log
+from acquisition.card import output_names, prepare_images
+
+# Only what checking the options needs, and the frames' copier: the rest (numpy, the log
+# readers, the matcher) is loaded in `command` once the frames are being copied.
+from acquisition.frame_copies import FrameCopies
+from acquisition.sync_points import SyncPoint, parse_sync_position, parse_sync_time
 from planner.errors import InputError
+from planner.outputs import StagedOutputDir
 
 from ..common import echo_table, json_option, overwrite_option, progress
+
+if TYPE_CHECKING:
+    from acquisition.geotag_results import GeotagResult
 
 
 def _finite(ctx: click.Context, param: click.Parameter, value: float | None) -> float | None:
@@ -54,6 +60,28 @@ def _log_progress(enabled: bool) -> Iterator[Callable[[int, int], None] | None]:
                 shown[0] = percent
 
         yield report
+
+
+@contextmanager
+def _copied_ahead(
+    enabled: bool, images: Path, paths: Sequence[Path], out_dir: Path, overwrite: bool
+) -> Iterator[tuple[StagedOutputDir | None, FrameCopies | None]]:
+    """The output's staging folder, with every frame being copied into it by a worker process
+    while the log and the headers are read (:mod:`acquisition.frame_copies`); the worker stopped
+    and the folder removed unless the run moved it into place."""
+    if not enabled:
+        yield None, None
+        return
+    staging = StagedOutputDir(out_dir, overwrite=overwrite)
+    try:
+        names = output_names(images, paths)
+        copies = FrameCopies.start(staging.path, [(p, names[p]) for p in paths])
+        try:
+            yield staging, copies
+        finally:
+            copies.finish()
+    finally:
+        staging.discard()
 
 
 @click.command("geotag")
@@ -180,7 +208,6 @@ def command(
         raise click.UsageError("give either --offset-s or sync points (--sync, --sync-position), not both")
 
     # Everything that can be checked without the log, before reading it (a log can take a while).
-    options = GeotagOptions(tolerance_s=tolerance_s, max_gap_s=max_gap_s)
     paths = prepare_images(
         images,
         out_dir,
@@ -190,31 +217,41 @@ def command(
         overwrite=overwrite,
         sync=sync,
     )
-    with _log_progress(not no_progress and not as_json) as log_report:
-        flight_log = read_log(log_path, log_report)
-    total = 2 * len(paths)
-    with progress("geotagging", total, enabled=not no_progress and not as_json) as advance:
-        seen = [0]
+    with _copied_ahead(not dry_run and not in_place, images, paths, out_dir, overwrite) as (staging, copies):
+        from acquisition.geotag import geotag_images
+        from acquisition.geotag_results import GeotagOptions
+        from acquisition.telemetry import read_log
 
-        def report(done: int, _total: int) -> None:
-            advance(done - seen[0])
-            seen[0] = done
+        options = GeotagOptions(tolerance_s=tolerance_s, max_gap_s=max_gap_s)
+        with _log_progress(not no_progress and not as_json) as log_report:
+            flight_log = read_log(log_path, log_report)
+        total = 2 * len(paths)
+        with progress("geotagging", total, enabled=not no_progress and not as_json) as advance:
+            seen = [0]
 
-        result = geotag_images(
-            images,
-            flight_log,
-            out_dir,
-            offset_s=offset_s,
-            sync=sync,
-            dry_run=dry_run,
-            in_place=in_place,
-            backup_dir=backup_dir,
-            overwrite=overwrite,
-            progress=report,
-            options=options,
-        )
+            def report(done: int, _total: int) -> None:
+                advance(done - seen[0])
+                seen[0] = done
+
+            result = geotag_images(
+                images,
+                flight_log,
+                out_dir,
+                offset_s=offset_s,
+                sync=sync,
+                dry_run=dry_run,
+                in_place=in_place,
+                backup_dir=backup_dir,
+                overwrite=overwrite,
+                progress=report,
+                options=options,
+                staging=staging,
+                copies=copies,
+            )
 
     if as_json:
+        from acquisition.geotag_results import report_json
+
         click.echo(report_json(result), nl=False)
     else:
         _present(result)
@@ -222,6 +259,8 @@ def command(
 
 
 def _present(result: GeotagResult) -> None:
+    from acquisition.geotag_results import FrameStatus
+
     matched = sum(1 for f in result.frames if f.status is FrameStatus.MATCHED)
     rows = [
         ("frames", str(len(result.frames))),

@@ -29,7 +29,8 @@ from hypothesis import strategies as st
 from PIL import Image
 from shared_data import SHARED_DATA
 
-from acquisition import attitude, exif, geotag, geotag_frames, interpolation, matching, sidecars
+from acquisition import attitude, exif, geotag, interpolation, matching, sidecars
+from acquisition import card as card_frames
 from acquisition.errors import GeotagError
 from acquisition.geotag_results import FrameStatus, GeotagOptions, OffsetSource
 from acquisition.telemetry.model import AttitudeTrack, CameraEvents, FlightLog, PositionTrack
@@ -684,8 +685,8 @@ def test_unique_names_are_kept_as_they_are(tmp_path: Path, flight: Flight) -> No
     times, _ = frame_times(flight)
     card = tmp_path / "card"
     write_frames(card / "100MEDIA", times[:3])
-    paths = geotag_frames.list_images(card)
-    assert geotag_frames.output_names(card, paths) == {p: p.name for p in paths}
+    paths = card_frames.list_images(card)
+    assert card_frames.output_names(card, paths) == {p: p.name for p in paths}
 
 
 def test_log_from_another_day(

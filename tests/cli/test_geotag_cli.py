@@ -169,6 +169,8 @@ def test_irreconcilable_counts_exit_1(tmp_path: Path, sitl_log: FlightLog) -> No
     assert code == 1
     assert "cannot be reconciled: 40 frames, 70 events" in stderr
     assert not (tmp_path / "out").exists()
+    # The frames were being copied into a staging folder meanwhile: it is gone, with them.
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["card"]
 
 
 def test_dry_run_in_place_and_overwrite(tmp_path: Path, sitl_log: FlightLog) -> None:

@@ -1,0 +1,226 @@
+"""acquisition.frame_copies and acquisition.copy_worker: the frames copied ahead of geotag's writing
+by a real worker process. Oracles: the source files' own bytes and os.stat, the filesystem (what
+exists afterwards), and the writer without copies (tested against exiftool in test_exif.py and
+test_geotag.py) for the tagged files."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+import threading
+from pathlib import Path
+
+import numpy as np
+import pytest
+from shared_data import SHARED_DATA
+
+from acquisition import copy_worker, exif
+from acquisition.frame_copies import FrameCopies
+
+GARFIELD = SHARED_DATA / "garfield_rgb"
+
+
+def _ident(path: Path) -> list[int]:
+    stat = path.stat()
+    return [stat.st_dev, stat.st_ino, stat.st_size, stat.st_mtime_ns]
+
+
+def _tag(lat_deg: float) -> exif.GeoTag:
+    return exif.GeoTag(lat_deg=lat_deg, lon_deg=-93.25, alt_amsl_m=312.5, time_utc_s=1715933472.25)
+
+
+def _card(folder: Path, count: int) -> list[Path]:
+    """Real Sequoia frames (XMP padding: the header keeps its length when tagged), the first
+    without XMP padding to spare (its header grows), ``count`` in all."""
+    folder.mkdir(parents=True)
+    frames = sorted(GARFIELD.glob("*.JPG"))
+    paths = []
+    for k in range(count):
+        path = folder / f"F{k:03d}.JPG"
+        shutil.copyfile(frames[k % len(frames)], path)
+        paths.append(path)
+    data = paths[0].read_bytes()
+    split = exif._split_bytes(data, "frame")
+    end = data.rfind(b"<?xpacket end=", 0, split.sos_offset)
+    start = end
+    while data[start - 1 : start] in (b" ", b"\n"):
+        start -= 1
+    at = data.rfind(b"\xff\xe1", 0, end)
+    length = int.from_bytes(data[at + 2 : at + 4], "big") - (end - start)
+    paths[0].write_bytes(data[: at + 2] + length.to_bytes(2, "big") + data[at + 4 : start] + data[end:])
+    return paths
+
+
+def _run_worker(pairs: list[list[str]]) -> list[list[object]]:
+    done = subprocess.run(
+        [sys.executable, "-I", "-S", str(copy_worker.__file__)],
+        input=json.dumps(pairs).encode(),
+        capture_output=True,
+        check=True,
+        timeout=60,
+    )
+    return [json.loads(line) for line in done.stdout.splitlines()]
+
+
+def test_the_worker_copies_byte_for_byte_and_never_overwrites(tmp_path: Path) -> None:
+    src = tmp_path / "src"
+    src.mkdir()
+    rng = np.random.default_rng(7)
+    sources = {
+        "empty": b"",
+        "one": b"\xff",
+        "noise": rng.integers(0, 256, 3_000_001, dtype=np.uint8).tobytes(),
+        "frame": (GARFIELD / "IMG_161122_163234_0000_RGB.JPG").read_bytes(),
+    }
+    for name, data in sources.items():
+        (src / name).write_bytes(data)
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "taken").write_bytes(b"the writer's")
+    pairs = [[str(src / name), str(out / name)] for name in sources]
+    pairs += [[str(src / "noise"), str(out / "taken")], [str(src / "missing"), str(out / "missing")]]
+    answers = _run_worker(pairs)
+    assert [a[0] for a in answers] == list(range(len(pairs)))
+    for k, name in enumerate(sources):
+        assert (out / name).read_bytes() == sources[name]
+        assert answers[k][1] == _ident(src / name)
+    assert answers[4][1] is None and (out / "taken").read_bytes() == b"the writer's"
+    assert answers[5][1] is None and "missing" in str(answers[5][2]) and not (out / "missing").exists()
+
+
+def test_a_frame_the_worker_has_not_reached_is_reserved_for_the_writer(tmp_path: Path) -> None:
+    """The worker is held at its first frame (a FIFO: opening it waits for a writer); the second
+    frame is then the caller's, an empty file the worker leaves alone."""
+    src = tmp_path / "src"
+    src.mkdir()
+    fifo = src / "A.JPG"
+    os.mkfifo(fifo)
+    frame = src / "B.JPG"
+    shutil.copyfile(GARFIELD / "IMG_161122_163234_0000_RGB.JPG", frame)
+    out = tmp_path / "out"
+    out.mkdir()
+    copies = FrameCopies.start(out, [(fifo, "A.JPG"), (frame, "B.JPG")])
+    try:
+        reserved = copies.take(frame)
+        assert reserved is not None and reserved.identity is None and reserved.path == out / "B.JPG"
+        assert (out / "B.JPG").read_bytes() == b""
+        os.close(os.open(fifo, os.O_WRONLY))  # lets the worker go on: A is empty, B is taken
+        copies.wait()
+        first = copies.take(fifo)
+        assert first is not None and first.identity == tuple(_ident(fifo))
+    finally:
+        copies.finish()
+    assert (out / "A.JPG").read_bytes() == b"" and (out / "B.JPG").read_bytes() == b""
+
+
+def test_finish_removes_every_copy_nobody_took(tmp_path: Path) -> None:
+    paths = _card(tmp_path / "card", 40)
+    out = tmp_path / "out"
+    out.mkdir()
+    copies = FrameCopies.start(out, [(p, p.name) for p in paths])
+    kept = paths[::7]
+    for path in kept:
+        copied = copies.take(path)
+        assert copied is not None and copied.path == out / path.name
+        assert copies.take(path) == copied  # the same answer again
+    copies.finish()
+    assert sorted(p.name for p in out.iterdir()) == sorted(p.name for p in kept)
+    copies.finish()  # idempotent
+
+    # Stopped at once: whatever the worker had begun is gone too.
+    again = tmp_path / "again"
+    again.mkdir()
+    FrameCopies.start(again, [(p, p.name) for p in paths]).finish()
+    assert list(again.iterdir()) == []
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_writing_over_copies_gives_the_bytes_of_writing_without(tmp_path: Path, workers: int) -> None:
+    paths = _card(tmp_path / "card", 24)
+    seen = {str(p): exif.read_tags_and_header(p)[1] for p in paths}
+    outputs = {}
+    for mode in ("plain", "copies"):
+        out = tmp_path / mode
+        out.mkdir()
+        jobs = [
+            exif.GeotagJob(src=str(p), dst=str(out / p.name), tag=_tag(40.0 + k / 1000), seen=seen[str(p)])
+            for k, p in enumerate(paths[:-3])  # the last three are not placed: not written
+        ]
+        copies = FrameCopies.start(out, [(p, p.name) for p in paths]) if mode == "copies" else None
+        done: list[int] = []
+        try:
+            results = exif.write_geotags(
+                jobs, workers=workers, atomic=False, copies=copies, progress=done.append
+            )
+        finally:
+            if copies is not None:
+                copies.finish()
+        assert [r.src for r in results] == [j.src for j in jobs] and all(r.written for r in results)
+        assert done == list(range(1, len(jobs) + 1))
+        outputs[mode] = out
+    names = sorted(p.name for p in outputs["plain"].iterdir())
+    assert names == sorted(p.name for p in paths[:-3])
+    assert sorted(p.name for p in outputs["copies"].iterdir()) == names
+    for name in names:
+        assert (outputs["copies"] / name).read_bytes() == (outputs["plain"] / name).read_bytes()
+    grown = paths[0].name  # the frame without padding: its header grew, the copy was rewritten
+    assert exif._split_bytes((outputs["copies"] / grown).read_bytes(), "out").sos_offset > (
+        exif._split_bytes(paths[0].read_bytes(), "in").sos_offset
+    )
+
+
+def test_a_source_changed_after_its_copy_is_written_from_the_source(tmp_path: Path) -> None:
+    """The copy is of the file as it was; the frame changed since (the crew replaced it, or
+    the card was still being written): the copy is not used, the frame as it is now is."""
+    paths = _card(tmp_path / "card", 6)
+    out = tmp_path / "out"
+    out.mkdir()
+    copies = FrameCopies.start(out, [(p, p.name) for p in paths])
+    try:
+        copies.wait()
+        assert all(getattr(copies.take(p), "identity", None) == tuple(_ident(p)) for p in paths)
+        replaced, broken = paths[1], paths[2]
+        shutil.copyfile(sorted(GARFIELD.glob("*.JPG"))[-1], replaced)
+        broken.write_bytes(b"not a JPEG any more")
+        jobs = [exif.GeotagJob(src=str(p), dst=str(out / p.name), tag=_tag(41.0)) for p in paths]
+        results = exif.write_geotags(jobs, atomic=False, copies=copies)
+    finally:
+        copies.finish()
+    assert [r.written for r in results] == [True, True, False, True, True, True]
+    assert not (out / broken.name).exists()  # no untagged copy where the frame's would be
+    assert exif.compressed_image_data(out / replaced.name) == exif.compressed_image_data(replaced)
+    for path in (paths[0], replaced, *paths[3:]):
+        assert exif.read_tags(out / path.name).gps_lat_deg == pytest.approx(41.0)
+
+
+def test_takers_in_threads_each_get_their_own_frame(tmp_path: Path) -> None:
+    """take() from several threads at once (the writers): every frame is either a complete copy
+    or reserved, never both, and the worker never writes into a reserved file."""
+    paths = _card(tmp_path / "card", 60)
+    out = tmp_path / "out"
+    out.mkdir()
+    copies = FrameCopies.start(out, [(p, p.name) for p in paths])
+    got: dict[str, object] = {}
+
+    def take(part: list[Path]) -> None:
+        for path in part:
+            got[path.name] = copies.take(path)
+
+    threads = [threading.Thread(target=take, args=(paths[k::3][::-1],)) for k in range(3)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join(60)
+    copies.finish()
+    assert len(got) == len(paths)
+    for path in paths:
+        copied = got[path.name]
+        assert copied is not None
+        data = (out / path.name).read_bytes()
+        if copied.identity is None:  # type: ignore[attr-defined]
+            assert data == b""
+        else:
+            assert data == path.read_bytes() and list(copied.identity) == _ident(path)  # type: ignore[attr-defined]
