@@ -1,8 +1,8 @@
 """The frames of a card: finding them, naming them in the outputs, and checking the options before
 a slow log is read (:func:`prepare_images`). Reading their tags is :mod:`acquisition.geotag_frames`.
 
-Standard library only, so that ``sfap geotag`` can check its options and begin copying the frames
-(:mod:`acquisition.frame_copies`) before the heavier modules are loaded.
+Standard library only, so that ``sfap geotag`` can check its options and start the card's worker
+(:mod:`acquisition.card_ahead`) before the heavier modules are loaded.
 """
 
 from __future__ import annotations

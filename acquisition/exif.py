@@ -48,12 +48,13 @@ from planner.errors import OutputExistsError
 from planner.outputs import atomic_file, process_umask
 
 from . import jpeg_meta
-from .copy_worker import copy_range, identity
 from .errors import GeotagError
-from .frame_copies import Copied, FrameCopies
+from .kernel_copy import copy_range, identity
 
 if TYPE_CHECKING:
     import pyexiv2
+
+    from .card_ahead import CardAhead, Copied
 
 log = logging.getLogger(__name__)
 
@@ -920,7 +921,7 @@ def _write_file(
     ``fast(header, maps)``, when given, makes the same change without exiv2
     (:mod:`acquisition.jpeg_meta`); a header it does not handle goes to exiv2. ``seen``: what an
     earlier read of ``src`` saw (:class:`HeaderSnapshot`), used while the file is the same.
-    ``copied``: a byte copy of ``src`` already at ``dst`` (:mod:`acquisition.frame_copies`),
+    ``copied``: a byte copy of ``src`` already at ``dst`` (:mod:`acquisition.card_ahead`),
     written over when it is of the file as it is now, else removed and ``dst`` written whole."""
     try:
         return _write_file_unguarded(
@@ -1068,7 +1069,7 @@ class GeotagWriteResult:
         return self.error is None
 
 
-def _run_job(job: GeotagJob, overwrite: bool, atomic: bool, copies: FrameCopies | None) -> GeotagWriteResult:
+def _run_job(job: GeotagJob, overwrite: bool, atomic: bool, ahead: CardAhead | None) -> GeotagWriteResult:
     try:
         _, warnings = _write_file(
             job.src,
@@ -1078,7 +1079,7 @@ def _run_job(job: GeotagJob, overwrite: bool, atomic: bool, copies: FrameCopies 
             atomic=atomic,
             fast=_geotag_fast(job.tag),
             seen=job.seen,
-            copied=None if copies is None else copies.take(job.src),
+            copied=None if ahead is None else ahead.take(job.src),
         )
     except (GeotagError, OSError) as error:
         return GeotagWriteResult(src=job.src, dst=job.dst, error=str(error))
@@ -1092,12 +1093,12 @@ def write_geotags(
     overwrite: bool = False,
     atomic: bool = True,
     progress: Callable[[int], None] | None = None,
-    copies: FrameCopies | None = None,
+    ahead: CardAhead | None = None,
 ) -> list[GeotagWriteResult]:
     """Write many frames, ``workers`` at a time (default: the CPUs this process may use, at most 4).
 
-    ``copies``: the frames already copied byte for byte to their destinations
-    (:mod:`acquisition.frame_copies`); each job takes its copy and writes the header over it.
+    ``ahead``: the frames being copied byte for byte to their destinations by a worker
+    (:mod:`acquisition.card_ahead`); each job takes its copy and writes the header over it.
     A frame that cannot be written does not stop the others: its result carries the error.
     Results come back in the order of ``jobs``; ``progress(n)`` is called with the number done.
     Threads suffice: the copy runs in the kernel without the GIL, and exiv2's share is small.
@@ -1108,11 +1109,11 @@ def write_geotags(
     if workers < 1:
         raise GeotagError(f"workers is {workers}; give 1 or more")
     process_umask()  # read (it is set and reset) before any thread creates a file
-    # Against a copier, the frames it reaches last first (see acquisition.frame_copies).
-    order = list(range(len(job_list))) if copies is None else copies.writing_order([j.src for j in job_list])
+    # Against the copier, the frames it copies last first (see acquisition.card_ahead).
+    order = list(range(len(job_list))) if ahead is None else ahead.writing_order([j.src for j in job_list])
 
     def run(k: int) -> GeotagWriteResult:
-        return _run_job(job_list[k], overwrite, atomic, copies)
+        return _run_job(job_list[k], overwrite, atomic, ahead)
 
     results: dict[int, GeotagWriteResult] = {}
     with contextlib.ExitStack() as stack:

@@ -52,8 +52,8 @@ from numpy.typing import NDArray
 from planner.outputs import StagedOutputDir
 
 from .card import output_names, prepare_images
+from .card_ahead import CardAhead
 from .errors import GeotagError
-from .frame_copies import FrameCopies
 from .geotag_frames import (
     Frame,
     read_frames,
@@ -99,7 +99,8 @@ def geotag_images(
     progress: ProgressCallback | None = None,
     options: GeotagOptions | None = None,
     staging: StagedOutputDir | None = None,
-    copies: FrameCopies | None = None,
+    ahead: CardAhead | None = None,
+    images: Sequence[Path] | None = None,
 ) -> GeotagResult:
     """Geotag every JPEG under ``image_dir`` (recursively) from ``log``; results in ``out_dir``.
 
@@ -110,9 +111,10 @@ def geotag_images(
     seconds, if known. ``sync``: frames whose time or position the crew knows, to find or check
     the offset. ``in_place`` rewrites the originals, after copying each to ``backup_dir``
     (required). ``dry_run`` writes nothing. Frames that cannot be placed are reported, never
-    written. ``staging``: the output's staging folder when the caller began it, with ``copies``
-    of the frames being made into it (:mod:`acquisition.frame_copies`); the caller stops those and
-    removes the folder if this raises.
+    written. ``staging``: the output's staging folder when the caller began it, and ``ahead`` the
+    worker copying the frames into it (:mod:`acquisition.card_ahead`); the caller stops the
+    worker and removes the folder if this raises. ``images``: the frames, when the caller has
+    listed them and checked the options (:func:`acquisition.card.prepare_images`).
 
     Raises :class:`GeotagError` when the frames and events cannot be reconciled, or when their
     alignment is ambiguous (another camera clock offset fits nearly as well) and neither
@@ -121,15 +123,17 @@ def geotag_images(
     """
     options = options or GeotagOptions()
     report = progress or (lambda done, total: None)
-    paths = prepare_images(
-        image_dir,
-        out_dir,
-        dry_run=dry_run,
-        in_place=in_place,
-        backup_dir=backup_dir,
-        overwrite=overwrite,
-        sync=sync,
-    )
+    if images is None:
+        images = prepare_images(
+            image_dir,
+            out_dir,
+            dry_run=dry_run,
+            in_place=in_place,
+            backup_dir=backup_dir,
+            overwrite=overwrite,
+            sync=sync,
+        )
+    paths = list(images)
     names = output_names(image_dir, paths)
     total = 2 * len(paths)
     frames = read_frames(paths, lambda done: report(done, total))
@@ -192,7 +196,7 @@ def geotag_images(
             summary=result,
             seen={str(fr.path): fr.seen for fr in frames if fr.seen is not None},
             staging=staging,
-            copies=copies,
+            ahead=ahead,
         )
     report(total, total)
     return result(final, outputs)

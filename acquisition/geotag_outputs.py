@@ -13,7 +13,7 @@ from planner.errors import OutputExistsError
 from planner.outputs import StagedOutputDir, atomic_write_text, staged
 
 from . import exif, sidecars
-from .frame_copies import FrameCopies
+from .card_ahead import CardAhead
 from .geotag_results import REPORT_NAME, FrameResult, FrameStatus, GeotagResult, report_json
 
 
@@ -49,12 +49,12 @@ def write_outputs(
     summary: Callable[[list[FrameResult], list[str]], GeotagResult],
     seen: Mapping[str, exif.HeaderSnapshot] | None = None,
     staging: StagedOutputDir | None = None,
-    copies: FrameCopies | None = None,
+    ahead: CardAhead | None = None,
 ) -> tuple[list[FrameResult], list[str]]:
     """Write tagged frames, sidecars and the report; returns the frames with their output paths.
     ``seen``: each source path's header as read (:class:`acquisition.exif.HeaderSnapshot`).
-    ``staging``: the output's staging folder, when begun by the caller, and the ``copies`` of the
-    frames being made into it (:mod:`acquisition.frame_copies`): each written frame takes its
+    ``staging``: the output's staging folder, when begun by the caller, and ``ahead`` the worker
+    copying the frames into it (:mod:`acquisition.card_ahead`): each written frame takes its
     copy, the others' are removed before the folder is moved into place."""
     seen = seen or {}
     to_write = [f for f in frames if f.placed]
@@ -86,11 +86,11 @@ def write_outputs(
         ]
         try:
             outcomes = exif.write_geotags(
-                jobs, overwrite=in_place, atomic=in_place, progress=report, copies=copies
+                jobs, overwrite=in_place, atomic=in_place, progress=report, ahead=ahead
             )
         finally:
-            if copies is not None:  # the worker stopped before the folder is moved or removed
-                copies.finish()
+            if ahead is not None:  # the worker stopped before the folder is moved or removed
+                ahead.finish()
         for frame, outcome in zip(to_write, outcomes, strict=True):
             final_path = Path(frame.source_path) if in_place else out_dir / frame.name
             if outcome.written:

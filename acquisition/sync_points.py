@@ -3,7 +3,7 @@ UTC time or position is known independently of the camera clock, and how they ar
 command line. What they settle is in :mod:`acquisition.geotag_offset`.
 
 Standard library only, so that the geotag command can check its options before numpy is loaded
-(see :mod:`acquisition.frame_copies`).
+(see :mod:`acquisition.card_ahead`).
 """
 
 from __future__ import annotations

@@ -94,7 +94,7 @@ class StagedOutputDir:
     by :meth:`commit`; :meth:`discard` removes it and leaves ``target`` as it was.
 
     For a job whose staging must begin before the code that fills it is ready (``sfap geotag``
-    starts copying the frames while it reads the log, :mod:`acquisition.frame_copies`); otherwise
+    starts copying the frames while it reads the log, :mod:`acquisition.card_ahead`); otherwise
     use :func:`staged_output_dir`."""
 
     def __init__(self, target: str | os.PathLike[str], *, overwrite: bool = False) -> None:

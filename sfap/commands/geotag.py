@@ -13,9 +13,9 @@ import click
 
 from acquisition.card import output_names, prepare_images
 
-# Only what checking the options needs, and the frames' copier: the rest (numpy, the log
-# readers, the matcher) is loaded in `command` once the frames are being copied.
-from acquisition.frame_copies import FrameCopies
+# Only what checking the options needs, and the card's worker: the rest (numpy, the log
+# readers, the matcher) is loaded in `command` once the worker is reading the card.
+from acquisition.card_ahead import CardAhead
 from acquisition.sync_points import SyncPoint, parse_sync_position, parse_sync_time
 from planner.errors import InputError
 from planner.outputs import StagedOutputDir
@@ -63,23 +63,23 @@ def _log_progress(enabled: bool) -> Iterator[Callable[[int, int], None] | None]:
 
 
 @contextmanager
-def _copied_ahead(
+def _card_ahead(
     enabled: bool, images: Path, paths: Sequence[Path], out_dir: Path, overwrite: bool
-) -> Iterator[tuple[StagedOutputDir | None, FrameCopies | None]]:
-    """The output's staging folder, with every frame being copied into it by a worker process
-    while the log and the headers are read (:mod:`acquisition.frame_copies`); the worker stopped
-    and the folder removed unless the run moved it into place."""
+) -> Iterator[tuple[StagedOutputDir | None, CardAhead | None]]:
+    """The output's staging folder, and a worker process reading the frames and copying them into
+    it while this process loads its libraries and reads the log (:mod:`acquisition.card_ahead`);
+    the worker stopped and the folder removed unless the run moved it into place."""
     if not enabled:
         yield None, None
         return
     staging = StagedOutputDir(out_dir, overwrite=overwrite)
     try:
         names = output_names(images, paths)
-        copies = FrameCopies.start(staging.path, [(p, names[p]) for p in paths])
+        ahead = CardAhead.start(staging.path, [(p, names[p]) for p in paths])
         try:
-            yield staging, copies
+            yield staging, ahead
         finally:
-            copies.finish()
+            ahead.finish()
     finally:
         staging.discard()
 
@@ -217,7 +217,7 @@ def command(
         overwrite=overwrite,
         sync=sync,
     )
-    with _copied_ahead(not dry_run and not in_place, images, paths, out_dir, overwrite) as (staging, copies):
+    with _card_ahead(not dry_run and not in_place, images, paths, out_dir, overwrite) as (staging, ahead):
         from acquisition.geotag import geotag_images
         from acquisition.geotag_results import GeotagOptions
         from acquisition.telemetry import read_log
@@ -246,7 +246,8 @@ def command(
                 progress=report,
                 options=options,
                 staging=staging,
-                copies=copies,
+                ahead=ahead,
+                images=paths,
             )
 
     if as_json:

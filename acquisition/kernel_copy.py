@@ -1,23 +1,12 @@
-"""Copying files byte for byte in the kernel, and the process that copies a card's frames ahead of
-geotag's writing (:mod:`acquisition.frame_copies` starts it).
-
-Standard library only and no package imports: it runs as a script, ``python -I -S
-copy_worker.py``, with a start-up of a few milliseconds.
-
-The process reads a JSON list of ``[source, destination]`` pairs on standard input, then copies
-each source to its destination (created, never overwritten) and writes one JSON line per pair to
-standard output, in order: ``[i, [dev, ino, size, mtime_ns]]`` (the source's identity, the same
-before and after the copy) or ``[i, null, "reason"]`` (nothing left at the destination). It stops
-when standard output is closed (its parent is gone) and exits 0 when every pair was answered.
-"""
+"""Copying a file byte for byte in the kernel (``copy_file_range``, else ``sendfile``): the bytes
+never enter Python. Standard library only (the card worker, :mod:`acquisition.card_worker`, runs
+without site-packages)."""
 
 from __future__ import annotations
 
 import contextlib
 import errno
-import json
 import os
-import sys
 
 #: errno values of a kernel or filesystem that refuses an in-kernel copy between two files
 _NO_KERNEL_COPY = (errno.EXDEV, errno.ENOSYS, errno.EINVAL, errno.EOPNOTSUPP)
@@ -74,23 +63,3 @@ def copy_file(src: str, dst: str) -> tuple[int, int, int, int]:
         return before
     finally:
         os.close(src_fd)
-
-
-def main() -> int:
-    pairs = json.load(sys.stdin)
-    out = sys.stdout
-    for i, (src, dst) in enumerate(pairs):
-        try:
-            answer: list[object] = [i, list(copy_file(src, dst))]
-        except OSError as error:
-            answer = [i, None, str(error)]
-        try:
-            out.write(json.dumps(answer) + "\n")
-            out.flush()
-        except BrokenPipeError:  # the parent is gone: nobody will use the copies
-            return 0
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -1,12 +1,12 @@
-"""acquisition.frame_copies and acquisition.copy_worker: the frames copied ahead of geotag's writing
+"""acquisition.card_ahead, card_worker and kernel_copy: the frames copied ahead of geotag's writing
 by a real worker process. Oracles: the source files' own bytes and os.stat, the filesystem (what
 exists afterwards), and the writer without copies (tested against exiftool in test_exif.py and
 test_geotag.py) for the tagged files."""
 
 from __future__ import annotations
 
-import json
 import os
+import pickle
 import shutil
 import subprocess
 import sys
@@ -17,8 +17,8 @@ import numpy as np
 import pytest
 from shared_data import SHARED_DATA
 
-from acquisition import copy_worker, exif
-from acquisition.frame_copies import FrameCopies
+from acquisition import card_ahead, exif
+from acquisition.card_ahead import CardAhead
 
 GARFIELD = SHARED_DATA / "garfield_rgb"
 
@@ -54,15 +54,21 @@ def _card(folder: Path, count: int) -> list[Path]:
     return paths
 
 
-def _run_worker(pairs: list[list[str]]) -> list[list[object]]:
+def _run_worker(pairs: list[list[str]]) -> list[tuple[object, ...]]:
+    """The worker as geotag starts it, its answers decoded."""
     done = subprocess.run(
-        [sys.executable, "-I", "-S", str(copy_worker.__file__)],
-        input=json.dumps(pairs).encode(),
+        [sys.executable, "-I", "-S", "-c", card_ahead._WORKER, card_ahead._ROOT],
+        input=pickle.dumps(pairs),
         capture_output=True,
         check=True,
         timeout=60,
     )
-    return [json.loads(line) for line in done.stdout.splitlines()]
+    answers, data = [], done.stdout
+    while data:
+        size = int.from_bytes(data[:4], "big")
+        answers.append(pickle.loads(data[4 : 4 + size]))
+        data = data[4 + size :]
+    return answers
 
 
 def test_the_worker_copies_byte_for_byte_and_never_overwrites(tmp_path: Path) -> None:
@@ -86,7 +92,7 @@ def test_the_worker_copies_byte_for_byte_and_never_overwrites(tmp_path: Path) ->
     assert [a[0] for a in answers] == list(range(len(pairs)))
     for k, name in enumerate(sources):
         assert (out / name).read_bytes() == sources[name]
-        assert answers[k][1] == _ident(src / name)
+        assert list(answers[k][1]) == _ident(src / name)  # type: ignore[call-overload]
     assert answers[4][1] is None and (out / "taken").read_bytes() == b"the writer's"
     assert answers[5][1] is None and "missing" in str(answers[5][2]) and not (out / "missing").exists()
 
@@ -102,7 +108,7 @@ def test_a_frame_the_worker_has_not_reached_is_reserved_for_the_writer(tmp_path:
     shutil.copyfile(GARFIELD / "IMG_161122_163234_0000_RGB.JPG", frame)
     out = tmp_path / "out"
     out.mkdir()
-    copies = FrameCopies.start(out, [(fifo, "A.JPG"), (frame, "B.JPG")])
+    copies = CardAhead.start(out, [(fifo, "A.JPG"), (frame, "B.JPG")])
     try:
         reserved = copies.take(frame)
         assert reserved is not None and reserved.identity is None and reserved.path == out / "B.JPG"
@@ -120,7 +126,7 @@ def test_finish_removes_every_copy_nobody_took(tmp_path: Path) -> None:
     paths = _card(tmp_path / "card", 40)
     out = tmp_path / "out"
     out.mkdir()
-    copies = FrameCopies.start(out, [(p, p.name) for p in paths])
+    copies = CardAhead.start(out, [(p, p.name) for p in paths])
     kept = paths[::7]
     for path in kept:
         copied = copies.take(path)
@@ -133,7 +139,7 @@ def test_finish_removes_every_copy_nobody_took(tmp_path: Path) -> None:
     # Stopped at once: whatever the worker had begun is gone too.
     again = tmp_path / "again"
     again.mkdir()
-    FrameCopies.start(again, [(p, p.name) for p in paths]).finish()
+    CardAhead.start(again, [(p, p.name) for p in paths]).finish()
     assert list(again.iterdir()) == []
 
 
@@ -149,11 +155,11 @@ def test_writing_over_copies_gives_the_bytes_of_writing_without(tmp_path: Path, 
             exif.GeotagJob(src=str(p), dst=str(out / p.name), tag=_tag(40.0 + k / 1000), seen=seen[str(p)])
             for k, p in enumerate(paths[:-3])  # the last three are not placed: not written
         ]
-        copies = FrameCopies.start(out, [(p, p.name) for p in paths]) if mode == "copies" else None
+        copies = CardAhead.start(out, [(p, p.name) for p in paths]) if mode == "copies" else None
         done: list[int] = []
         try:
             results = exif.write_geotags(
-                jobs, workers=workers, atomic=False, copies=copies, progress=done.append
+                jobs, workers=workers, atomic=False, ahead=copies, progress=done.append
             )
         finally:
             if copies is not None:
@@ -178,7 +184,7 @@ def test_a_source_changed_after_its_copy_is_written_from_the_source(tmp_path: Pa
     paths = _card(tmp_path / "card", 6)
     out = tmp_path / "out"
     out.mkdir()
-    copies = FrameCopies.start(out, [(p, p.name) for p in paths])
+    copies = CardAhead.start(out, [(p, p.name) for p in paths])
     try:
         copies.wait()
         assert all(getattr(copies.take(p), "identity", None) == tuple(_ident(p)) for p in paths)
@@ -186,7 +192,7 @@ def test_a_source_changed_after_its_copy_is_written_from_the_source(tmp_path: Pa
         shutil.copyfile(sorted(GARFIELD.glob("*.JPG"))[-1], replaced)
         broken.write_bytes(b"not a JPEG any more")
         jobs = [exif.GeotagJob(src=str(p), dst=str(out / p.name), tag=_tag(41.0)) for p in paths]
-        results = exif.write_geotags(jobs, atomic=False, copies=copies)
+        results = exif.write_geotags(jobs, atomic=False, ahead=copies)
     finally:
         copies.finish()
     assert [r.written for r in results] == [True, True, False, True, True, True]
@@ -202,7 +208,7 @@ def test_takers_in_threads_each_get_their_own_frame(tmp_path: Path) -> None:
     paths = _card(tmp_path / "card", 60)
     out = tmp_path / "out"
     out.mkdir()
-    copies = FrameCopies.start(out, [(p, p.name) for p in paths])
+    copies = CardAhead.start(out, [(p, p.name) for p in paths])
     got: dict[str, object] = {}
 
     def take(part: list[Path]) -> None:
