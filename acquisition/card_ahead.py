@@ -73,8 +73,6 @@ class CardAhead:
         self._index = {src: i for i, src in enumerate(self._sources)}
         self._targets = [folder / name for _, name in frames]
         self._answers: dict[int, Copied | None] = {}
-        self._written: dict[int, tuple[str | None, tuple[str, ...]]] = {}  # the frames it wrote
-        self._delegated: set[int] = set()
         self._taken: set[int] = set()
         self._reserved: set[int] = set()  # files a writer created before the worker reached them
         self._changed = threading.Condition()
@@ -134,16 +132,14 @@ class CardAhead:
                 self._ended = True
                 self._changed.notify_all()
 
-    def _receive(self, message: tuple[Any, ...]) -> None:
-        kind, i, *rest = message
+    def _receive(self, answer: tuple[Any, ...]) -> None:
+        i, identity, *reason = answer
         with self._changed:
-            if kind == "write":
-                self._written[i] = (rest[0], tuple(rest[1]))
-            elif rest[0] is None:
-                log.debug("%s not copied ahead: %s", self._sources[i], rest[1:])
+            if identity is None:
+                log.debug("%s not copied ahead: %s", self._sources[i], reason)
                 self._answers[i] = None
             else:
-                self._answers[i] = Copied(self._targets[i], tuple(rest[0]))
+                self._answers[i] = Copied(self._targets[i], tuple(identity))
             self._changed.notify_all()
 
     # ---------------------------------------------------------------------------- the writers' side
@@ -180,36 +176,6 @@ class CardAhead:
                     target.unlink()
             return self._answers[i]
 
-    def delegate(self, jobs: Sequence[tuple[str, Any]]) -> bool:
-        """Give the worker ``jobs``, ``(source, GeoTag)`` of frames nobody took, to write after it
-        has copied every frame (:func:`acquisition.exif.write_geotag_without_exiv2`); their
-        outcomes come from :meth:`written`. False (nothing given) without a worker, or for a
-        frame already taken."""
-        indexes = [self._index.get(os.fspath(src)) for src, _ in jobs]
-        with self._changed:
-            process = self._process
-            if self._ended or process is None or any(i is None or i in self._taken for i in indexes):
-                return False
-            chosen = [i for i in indexes if i is not None]
-            self._taken.update(chosen)
-            self._delegated.update(chosen)
-        self._threads[0].join()  # after the list of frames
-        request = pickle.dumps([(i, tag) for i, (_, tag) in zip(chosen, jobs, strict=True)])
-        with contextlib.suppress(OSError, ValueError):  # the worker is gone: written() says so
-            _send(process.stdin, request)
-        return True
-
-    def written(self, src: str | os.PathLike[str]) -> tuple[str | None, tuple[str, ...]] | None:
-        """What the worker did with a frame given to it (:meth:`delegate`), once it has: (None,
-        warnings) when written, (reason, ()) when it left the frame to the caller (nothing at its
-        destination); None when the worker ended without saying (the caller writes it)."""
-        i = self._index.get(os.fspath(src))
-        if i is None or i not in self._delegated:
-            return None
-        with self._changed:
-            self._changed.wait_for(lambda: i in self._written or self._ended)
-            return self._written.get(i)
-
     def wait(self) -> None:
         """Wait until the worker has answered for every frame, or has ended."""
         with self._changed:
@@ -222,11 +188,8 @@ class CardAhead:
         if process is not None and process.poll() is None:
             with contextlib.suppress(ProcessLookupError):
                 process.kill()
-        for thread in self._threads:  # a write to the dead worker fails at once
+        for thread in self._threads:
             thread.join()
-        if process is not None and process.stdin is not None:
-            with contextlib.suppress(OSError):
-                process.stdin.close()
         with self._changed:
             for i, target in enumerate(self._targets):
                 if i in self._taken:
@@ -236,16 +199,12 @@ class CardAhead:
                 self._answers.setdefault(i, None)
 
 
-def _send(pipe: IO[bytes] | None, request: bytes) -> None:
-    assert pipe is not None
-    pipe.write(request)
-    pipe.flush()
-
-
 def _feed(pipe: IO[bytes] | None, request: bytes) -> None:
-    """Write the list of frames to the worker."""
-    with contextlib.suppress(OSError, ValueError):  # the worker is gone: frames are handled here
-        _send(pipe, request)
+    """Write the worker's request and close its input."""
+    assert pipe is not None
+    with contextlib.suppress(OSError):  # the worker is gone: its answers end, frames are handled here
+        pipe.write(request)
+        pipe.close()
 
 
 def _read_exactly(stream: IO[bytes], size: int) -> bytes:

@@ -30,15 +30,12 @@ namespace (a level, nadir-looking camera has pitch 0 and roll 0).
 from __future__ import annotations
 
 import calendar
-import collections
 import contextlib
 import logging
 import math
 import os
-import queue
 import re
 import struct
-import threading
 from collections.abc import Callable, Iterable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -1046,24 +1043,6 @@ def write_geotag(
     return path
 
 
-def _exiv2_refused(image: Any, exif: Any, xmp: Any) -> None:
-    raise GeotagError("this header is written by exiv2, which this process does not load")
-
-
-def write_geotag_without_exiv2(
-    src: str | os.PathLike[str], dst: str | os.PathLike[str], tag: GeoTag, *, copied: Copied | None
-) -> list[str]:
-    """Write ``src`` with ``tag`` to the new file ``dst`` (over ``copied``, a byte copy already
-    there) as :func:`write_geotags` does, but only when the Python writer handles its header
-    (:mod:`acquisition.jpeg_meta`): for a process that does not load exiv2
-    (:mod:`acquisition.card_worker`). The warnings; raises :class:`GeotagError` (nothing left
-    at ``dst``) for a header only exiv2 writes."""
-    _, warnings = _write_file(
-        src, dst, _exiv2_refused, overwrite=False, atomic=False, fast=_geotag_fast(tag), copied=copied
-    )
-    return warnings
-
-
 @dataclass(frozen=True, kw_only=True)
 class GeotagJob:
     """One frame to write: ``src`` with ``tag`` to ``dst`` (``dst`` may equal ``src``)."""
@@ -1130,115 +1109,23 @@ def write_geotags(
     if workers < 1:
         raise GeotagError(f"workers is {workers}; give 1 or more")
     process_umask()  # read (it is set and reset) before any thread creates a file
+    # Against the copier, the frames it copies last first (see acquisition.card_ahead).
+    order = list(range(len(job_list))) if ahead is None else ahead.writing_order([j.src for j in job_list])
 
     def run(k: int) -> GeotagWriteResult:
         return _run_job(job_list[k], overwrite, atomic, ahead)
 
-    if ahead is not None and not atomic and len(job_list) >= 2:
-        return _write_with_worker(job_list, run, ahead, overwrite, workers, progress)
-    results: list[GeotagWriteResult] = []
+    results: dict[int, GeotagWriteResult] = {}
     with contextlib.ExitStack() as stack:
         if workers == 1 or len(job_list) < 2:
-            outcomes: Iterable[GeotagWriteResult] = map(run, range(len(job_list)))
+            outcomes: Iterable[GeotagWriteResult] = map(run, order)
         else:
-            outcomes = stack.enter_context(ThreadPoolExecutor(max_workers=workers)).map(
-                run, range(len(job_list))
-            )
-        for n, result in enumerate(outcomes, start=1):
-            results.append(result)
+            outcomes = stack.enter_context(ThreadPoolExecutor(max_workers=workers)).map(run, order)
+        for n, (k, result) in enumerate(zip(order, outcomes, strict=True), start=1):
+            results[k] = result
             if progress is not None:
                 progress(n)
-    return results
-
-
-#: Frames given to the card worker at once, once it has copied them all (see _write_with_worker).
-WORKER_CHUNK = 8
-
-
-def _write_with_worker(
-    job_list: list[GeotagJob],
-    run: Callable[[int], GeotagWriteResult],
-    ahead: CardAhead,
-    overwrite: bool,
-    workers: int,
-    progress: Callable[[int], None] | None,
-) -> list[GeotagWriteResult]:
-    """Write ``job_list`` over the copies the card worker makes (:mod:`acquisition.card_ahead`).
-
-    The worker copies the frames in order; ``workers`` threads here take them from the other end
-    (a frame it has not reached yet is theirs, copied here). Once it has copied every frame the
-    worker writes too: a dispatcher thread gives it ``WORKER_CHUNK`` frames at a time from its
-    end of what is left, and waits for them, until nothing is left. A frame it could not write
-    is written here."""
-    pending = collections.deque(ahead.writing_order([j.src for j in job_list]))
-    lock = threading.Lock()
-    done: queue.SimpleQueue[tuple[int, GeotagWriteResult | BaseException]] = queue.SimpleQueue()
-
-    def writer() -> None:
-        while True:
-            with lock:
-                if not pending:
-                    return
-                k = pending.popleft()
-            try:
-                done.put((k, run(k)))
-            except BaseException as error:  # a bug: raised again below, in the caller's thread
-                done.put((k, error))
-                return
-
-    def dispatcher() -> None:
-        ahead.wait()  # every frame copied (or the worker gone)
-        while True:
-            with lock:
-                chunk = [pending.pop() for _ in range(min(WORKER_CHUNK, len(pending)))]
-            if not chunk:
-                return
-            given = ahead.delegate([(job_list[k].src, job_list[k].tag) for k in chunk])
-            for k in chunk:
-                try:
-                    outcome = _delegated_result(job_list[k], ahead, overwrite) if given else run(k)
-                except BaseException as error:
-                    done.put((k, error))
-                    return
-                done.put((k, outcome))
-            if not given:
-                return
-
-    threads = [threading.Thread(target=writer, daemon=True) for _ in range(workers)]
-    threads.append(threading.Thread(target=dispatcher, daemon=True))
-    for thread in threads:
-        thread.start()
-    results: dict[int, GeotagWriteResult] = {}
-    failure: BaseException | None = None
-    while len(results) < len(job_list) and failure is None:
-        k, outcome = done.get()
-        if isinstance(outcome, BaseException):
-            failure = outcome
-            break
-        results[k] = outcome
-        if progress is not None:
-            progress(len(results))
-    with lock:
-        pending.clear()  # after a failure: nothing more is started
-    for thread in threads:
-        thread.join()
-    if failure is not None:
-        raise failure
     return [results[k] for k in range(len(job_list))]
-
-
-def _delegated_result(job: GeotagJob, ahead: CardAhead | None, overwrite: bool) -> GeotagWriteResult:
-    """What the card worker did with ``job``; written here when it could not."""
-    assert ahead is not None
-    done = ahead.written(job.src)
-    if done is not None and done[0] is None:
-        for text in done[1]:
-            log.warning("%s", text)
-        return GeotagWriteResult(src=job.src, dst=job.dst, warnings=done[1])
-    log.debug("%s: written here (the card worker: %s)", job.src, "gone" if done is None else done[0])
-    with contextlib.suppress(FileNotFoundError):
-        os.unlink(job.dst)  # whatever a worker that died left there
-    return _run_job(job, overwrite, False, None)
 
 
 def strip_gps(
