@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from PIL import Image
 from shared_data import SHARED_DATA
 
 from acquisition import card_ahead, exif
@@ -34,7 +35,8 @@ def _tag(lat_deg: float) -> exif.GeoTag:
 
 def _card(folder: Path, count: int) -> list[Path]:
     """Real Sequoia frames (XMP padding: the header keeps its length when tagged), the first
-    without XMP padding to spare (its header grows), ``count`` in all."""
+    without XMP padding to spare (its header grows) and the sixth a JPEG without EXIF (exiv2
+    writes it), ``count`` in all."""
     folder.mkdir(parents=True)
     frames = sorted(GARFIELD.glob("*.JPG"))
     paths = []
@@ -51,6 +53,9 @@ def _card(folder: Path, count: int) -> list[Path]:
     at = data.rfind(b"\xff\xe1", 0, end)
     length = int.from_bytes(data[at + 2 : at + 4], "big") - (end - start)
     paths[0].write_bytes(data[: at + 2] + length.to_bytes(2, "big") + data[at + 4 : start] + data[end:])
+    if count > 5:  # no EXIF at all: a header only exiv2 writes
+        pixels = np.random.default_rng(5).integers(0, 256, size=(32, 48, 3), dtype=np.uint8)
+        Image.fromarray(pixels).save(paths[5], format="JPEG", quality=85)
     return paths
 
 
