@@ -41,6 +41,8 @@ from typing import IO, Any
 
 log = logging.getLogger(__name__)
 
+_CLOEXEC = getattr(os, "O_CLOEXEC", 0)
+
 #: The folder that holds the ``acquisition`` package: the worker imports it from there.
 _ROOT = str(Path(__file__).resolve().parents[1])
 _WORKER = (
@@ -84,8 +86,8 @@ class CardAhead:
     def start(cls, folder: Path, frames: Sequence[tuple[Path, str]]) -> CardAhead:
         """``frames`` copied into ``folder`` by a worker process, begun now."""
         ahead = cls(folder, frames)
-        if not frames or not sys.executable:
-            return ahead
+        if not frames or not sys.executable or getattr(sys, "frozen", False):
+            return ahead  # nothing to copy, or no interpreter to run the worker with
         try:
             process = subprocess.Popen(
                 [sys.executable, "-I", "-S", "-c", _WORKER, _ROOT],
@@ -164,7 +166,7 @@ class CardAhead:
             self._taken.add(i)
             if i not in self._answers and not self._ended:
                 try:
-                    os.close(os.open(target, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_CLOEXEC, 0o666))
+                    os.close(os.open(target, os.O_WRONLY | os.O_CREAT | os.O_EXCL | _CLOEXEC, 0o666))
                     self._reserved.add(i)
                     return Copied(target, None)  # the worker will find it taken
                 except FileExistsError:

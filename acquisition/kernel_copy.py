@@ -10,6 +10,7 @@ import os
 
 #: errno values of a kernel or filesystem that refuses an in-kernel copy between two files
 _NO_KERNEL_COPY = (errno.EXDEV, errno.ENOSYS, errno.EINVAL, errno.EOPNOTSUPP)
+_CLOEXEC = getattr(os, "O_CLOEXEC", 0)
 
 
 class SourceShrankError(OSError):
@@ -45,10 +46,10 @@ def identity(stat: os.stat_result) -> tuple[int, int, int, int]:
 def copy_file(src: str, dst: str) -> tuple[int, int, int, int]:
     """Copy ``src`` to the new file ``dst``; the source's identity, unchanged by the copy.
     Raises OSError (``dst`` removed) when it cannot, or when the source changed meanwhile."""
-    src_fd = os.open(src, os.O_RDONLY | os.O_CLOEXEC)
+    src_fd = os.open(src, os.O_RDONLY | _CLOEXEC)
     try:
         before = identity(os.fstat(src_fd))
-        dst_fd = os.open(dst, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_CLOEXEC, 0o666)
+        dst_fd = os.open(dst, os.O_WRONLY | os.O_CREAT | os.O_EXCL | _CLOEXEC, 0o666)
         try:
             copy_range(src_fd, dst_fd, 0, before[2])
             after = identity(os.fstat(src_fd))
