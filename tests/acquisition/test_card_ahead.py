@@ -18,7 +18,7 @@ import pytest
 from PIL import Image
 from shared_data import SHARED_DATA
 
-from acquisition import card_ahead, exif
+from acquisition import card_ahead, exif, kernel_copy
 from acquisition.card_ahead import CardAhead
 
 GARFIELD = SHARED_DATA / "garfield_rgb"
@@ -235,3 +235,52 @@ def test_takers_in_threads_each_get_their_own_frame(tmp_path: Path) -> None:
             assert data == b""
         else:
             assert data == path.read_bytes() and list(copied.identity) == _ident(path)  # type: ignore[attr-defined]
+
+
+# ---------------------------------------------------------------------------- the kernel copy
+
+
+def test_a_source_that_changes_while_it_is_copied_is_not_copied(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A card still being written: the source grows during the copy. No copy is left, and the
+    error says why."""
+    src, dst = tmp_path / "frame.jpg", tmp_path / "copy.jpg"
+    src.write_bytes(b"\xff\xd8" + bytes(100_000))
+    real = kernel_copy.copy_range
+
+    def copy_then_grow(src_fd: int, dst_fd: int, offset: int, count: int) -> None:
+        real(src_fd, dst_fd, offset, count)
+        with src.open("ab") as handle:
+            handle.write(b"more")
+
+    monkeypatch.setattr(kernel_copy, "copy_range", copy_then_grow)
+    with pytest.raises(OSError, match="changed while it was copied"):
+        kernel_copy.copy_file(str(src), str(dst))
+    assert not dst.exists()
+
+
+def test_the_copy_falls_back_to_sendfile_and_notices_a_short_source(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Filesystems that refuse copy_file_range (EXDEV, across devices on older kernels): the
+    same bytes by sendfile. A source shorter than its size promised is an error, not a short
+    copy."""
+    import errno
+
+    data = np.random.default_rng(3).integers(0, 256, 1_234_567, dtype=np.uint8).tobytes()
+    src, dst = tmp_path / "frame.jpg", tmp_path / "copy.jpg"
+    src.write_bytes(data)
+
+    def refused(*args: object) -> int:
+        raise OSError(errno.EXDEV, "cross-device")
+
+    monkeypatch.setattr(os, "copy_file_range", refused)
+    assert list(kernel_copy.copy_file(str(src), str(dst))) == _ident(src)
+    assert dst.read_bytes() == data
+    with (
+        src.open("rb") as source,
+        (tmp_path / "short.jpg").open("wb") as out,
+        pytest.raises(kernel_copy.SourceShrankError),
+    ):
+        kernel_copy.copy_range(source.fileno(), out.fileno(), 0, len(data) + 10)

@@ -16,7 +16,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from planner.errors import OutputExistsError
-from planner.outputs import atomic_file, json_safe
+from planner.outputs import StagedOutputDir, atomic_file, json_safe, staged_output_dir
 
 
 def _leaf() -> st.SearchStrategy[tuple[Any, Any]]:
@@ -91,3 +91,48 @@ def test_atomic_file_refuses_an_existing_target_without_overwrite(tmp_path: Path
         handle.write(b"lost")
     assert target.read_bytes() == b"keep"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out.bin"]
+
+
+def _tree(root: Path) -> dict[str, bytes]:
+    return {p.relative_to(root).as_posix(): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
+
+
+def test_a_staged_folder_moves_into_place_whole_or_not_at_all(tmp_path: Path) -> None:
+    """StagedOutputDir: built beside the target, moved in by commit() (replacing an old folder
+    with --overwrite, nothing of it left), removed by discard(); once ended, it stays ended."""
+    target = tmp_path / "out"
+    first = StagedOutputDir(target)
+    assert first.path.parent == tmp_path and first.path.name.startswith(".out.")
+    (first.path / "a.txt").write_bytes(b"one")
+    (first.path / "sub").mkdir()
+    (first.path / "sub" / "b.txt").write_bytes(b"two")
+    assert not target.exists()
+    first.commit()
+    assert _tree(target) == {"a.txt": b"one", "sub/b.txt": b"two"}
+    first.discard()  # after the commit: nothing happens
+    assert _tree(target) == {"a.txt": b"one", "sub/b.txt": b"two"}
+    with pytest.raises(RuntimeError):
+        first.commit()
+
+    with pytest.raises(OutputExistsError):
+        StagedOutputDir(target)  # not empty, no overwrite
+    second = StagedOutputDir(target, overwrite=True)
+    (second.path / "c.txt").write_bytes(b"three")
+    second.discard()
+    assert _tree(target) == {"a.txt": b"one", "sub/b.txt": b"two"}  # untouched
+    third = StagedOutputDir(target, overwrite=True)
+    (third.path / "c.txt").write_bytes(b"three")
+    third.commit()
+    assert _tree(target) == {"c.txt": b"three"}
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]  # no staging, no old folder
+
+
+def test_staged_output_dir_leaves_nothing_when_the_block_fails(tmp_path: Path) -> None:
+    target = tmp_path / "out"
+    target.mkdir()
+    (target / "kept.txt").write_bytes(b"old")
+    with pytest.raises(KeyboardInterrupt), staged_output_dir(target, overwrite=True) as staging:
+        (staging / "new.txt").write_bytes(b"new")
+        raise KeyboardInterrupt
+    assert _tree(target) == {"kept.txt": b"old"}
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
