@@ -284,3 +284,38 @@ def test_the_copy_falls_back_to_sendfile_and_notices_a_short_source(
         pytest.raises(kernel_copy.SourceShrankError),
     ):
         kernel_copy.copy_range(source.fileno(), out.fileno(), 0, len(data) + 10)
+
+
+@pytest.mark.parametrize(
+    "worker",
+    [
+        "import sys; sys.exit(3)",  # dies at once
+        "import sys, time; sys.stdin.buffer.read(); time.sleep(0.2)",  # reads, answers nothing, ends
+        # killed in the middle of its first copy: half a file left, no answer
+        "import sys, pickle; pairs = pickle.load(sys.stdin.buffer); open(pairs[0][1], 'xb').write(b'half')",
+    ],
+)
+def test_a_worker_that_fails_leaves_every_frame_to_the_writers(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, worker: str
+) -> None:
+    """The worker could not import, ended without a word, or died in the middle of a copy: the
+    frames are written here, byte for byte as without a worker, and nothing else is left in the
+    folder."""
+    paths = _card(tmp_path / "card", 10)
+    plain = tmp_path / "plain"
+    plain.mkdir()
+    jobs_plain = [exif.GeotagJob(src=str(p), dst=str(plain / p.name), tag=_tag(42.0)) for p in paths]
+    assert all(r.written for r in exif.write_geotags(jobs_plain, atomic=False))
+    monkeypatch.setattr(card_ahead, "_WORKER", worker)
+    out = tmp_path / "out"
+    out.mkdir()
+    ahead = CardAhead.start(out, [(p, p.name) for p in paths])
+    try:
+        jobs = [exif.GeotagJob(src=str(p), dst=str(out / p.name), tag=_tag(42.0)) for p in paths[:-2]]
+        results = exif.write_geotags(jobs, workers=2, atomic=False, ahead=ahead)
+    finally:
+        ahead.finish()
+    assert all(r.written for r in results)
+    assert sorted(p.name for p in out.iterdir()) == sorted(p.name for p in paths[:-2])
+    for path in paths[:-2]:
+        assert (out / path.name).read_bytes() == (plain / path.name).read_bytes()
