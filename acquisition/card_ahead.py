@@ -204,9 +204,12 @@ class CardAhead:
 def _feed(pipe: IO[bytes] | None, request: bytes) -> None:
     """Write the worker's request and close its input."""
     assert pipe is not None
-    with contextlib.suppress(OSError):  # the worker is gone: its answers end, frames are handled here
-        pipe.write(request)
-        pipe.close()
+    try:
+        with contextlib.suppress(OSError):  # the worker is gone: its answers end, frames are written here
+            pipe.write(request)
+    finally:
+        with contextlib.suppress(OSError):
+            pipe.close()
 
 
 def _read_exactly(stream: IO[bytes], size: int) -> bytes:
