@@ -904,6 +904,11 @@ def _has_eoi(fd: int, split: _Split, name: str) -> bool:
     return True
 
 
+def _remove_copy(copied: Copied) -> None:
+    with contextlib.suppress(FileNotFoundError):
+        copied.path.unlink()
+
+
 def _write_file(
     src: str | os.PathLike[str],
     dst: str | os.PathLike[str],
@@ -922,42 +927,8 @@ def _write_file(
     (:mod:`acquisition.jpeg_meta`); a header it does not handle goes to exiv2. ``seen``: what an
     earlier read of ``src`` saw (:class:`HeaderSnapshot`), used while the file is the same.
     ``copied``: a byte copy of ``src`` already at ``dst`` (:mod:`acquisition.card_ahead`),
-    written over when it is of the file as it is now, else removed and ``dst`` written whole."""
-    try:
-        return _write_file_unguarded(
-            src,
-            dst,
-            change,
-            overwrite=overwrite,
-            atomic=atomic,
-            check_end=check_end,
-            fast=fast,
-            seen=seen,
-            copied=copied,
-        )
-    except BaseException:
-        if copied is not None:  # the untagged copy must not stay where the tagged frame belongs
-            _remove_copy(copied)
-        raise
-
-
-def _remove_copy(copied: Copied) -> None:
-    with contextlib.suppress(FileNotFoundError):
-        copied.path.unlink()
-
-
-def _write_file_unguarded(
-    src: str | os.PathLike[str],
-    dst: str | os.PathLike[str],
-    change: Any,
-    *,
-    overwrite: bool,
-    atomic: bool,
-    check_end: bool,
-    fast: FastChange | None,
-    seen: HeaderSnapshot | None,
-    copied: Copied | None,
-) -> tuple[Path, list[str]]:
+    written over when it is of the file as it is now, else removed and ``dst`` written whole;
+    the caller removes it when this raises (:func:`_run_job`)."""
     name = str(src)
     warnings: list[str] = []
     same = os.path.abspath(src) == os.path.abspath(dst)
@@ -1070,6 +1041,7 @@ class GeotagWriteResult:
 
 
 def _run_job(job: GeotagJob, overwrite: bool, atomic: bool, ahead: CardAhead | None) -> GeotagWriteResult:
+    copied = None if ahead is None else ahead.take(job.src)
     try:
         _, warnings = _write_file(
             job.src,
@@ -1079,10 +1051,14 @@ def _run_job(job: GeotagJob, overwrite: bool, atomic: bool, ahead: CardAhead | N
             atomic=atomic,
             fast=_geotag_fast(job.tag),
             seen=job.seen,
-            copied=None if ahead is None else ahead.take(job.src),
+            copied=copied,
         )
-    except (GeotagError, OSError) as error:
-        return GeotagWriteResult(src=job.src, dst=job.dst, error=str(error))
+    except BaseException as error:
+        if copied is not None:  # the untagged copy must not stay where the tagged frame belongs
+            _remove_copy(copied)
+        if isinstance(error, GeotagError | OSError):
+            return GeotagWriteResult(src=job.src, dst=job.dst, error=str(error))
+        raise
     return GeotagWriteResult(src=job.src, dst=job.dst, warnings=tuple(warnings))
 
 

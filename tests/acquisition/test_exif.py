@@ -13,6 +13,7 @@ import pyexiv2
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from jpeg_edits import without_xmp_padding
 from PIL import Image
 from shared_data import SHARED_DATA
 
@@ -776,16 +777,7 @@ def test_the_xmp_padding_keeps_the_image_data_where_it_was(tmp_path: Path) -> No
 
 def test_a_frame_without_padding_to_spare_gets_a_longer_header(tmp_path: Path) -> None:
     """No room in the XMP padding: the header grows, the image data follows it byte for byte."""
-    data = GARFIELD_FIRST.read_bytes()
-    split = exif._split_bytes(data, "in")
-    end = data.rfind(b"<?xpacket end=", 0, split.sos_offset)
-    start = end
-    while data[start - 1 : start] in (b" ", b"\n"):
-        start -= 1
-    # Take the padding out and fix the XMP segment's length field.
-    segment_at = data.rfind(b"\xff\xe1", 0, end)
-    length = int.from_bytes(data[segment_at + 2 : segment_at + 4], "big") - (end - start)
-    tight = data[: segment_at + 2] + length.to_bytes(2, "big") + data[segment_at + 4 : start] + data[end:]
+    tight = without_xmp_padding(GARFIELD_FIRST.read_bytes())
     source = tmp_path / "tight.jpg"
     source.write_bytes(tight)
     exif.write_geotag(source, tmp_path / "out.jpg", _tag(lat_deg=47.25))
