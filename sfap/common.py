@@ -94,3 +94,33 @@ def progress(label: str, total: int, enabled: bool = True) -> Iterator[Callable[
         return
     with click.progressbar(length=total, label=label, file=stream) as bar:
         yield bar.update
+
+
+@contextmanager
+def warnings_once(prefix: str) -> Iterator[set[str]]:
+    """Print each warning once: a command that lists its result's warnings in its summary adds
+    them to the yielded set; what the loggers under ``prefix`` warn of meanwhile is held back
+    from stderr, and whatever of it the command did not print is printed when it ends (also on
+    an error), in order, once."""
+    import logging
+
+    held: list[str] = []
+    shown: set[str] = set()
+
+    def hold(record: logging.LogRecord) -> bool:
+        if record.levelno == logging.WARNING and (record.name + ".").startswith(prefix + "."):
+            held.append(record.getMessage())
+            return False
+        return True
+
+    handlers = list(logging.getLogger().handlers)
+    for handler in handlers:
+        handler.addFilter(hold)
+    try:
+        yield shown
+    finally:
+        for handler in handlers:
+            handler.removeFilter(hold)
+        for message in dict.fromkeys(held):
+            if message not in shown:
+                click.echo(f"warning: {message}", err=True)

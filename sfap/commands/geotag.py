@@ -20,7 +20,7 @@ from acquisition.sync_points import SyncPoint, parse_sync_position, parse_sync_t
 from planner.errors import InputError
 from planner.outputs import StagedOutputDir
 
-from ..common import echo_table, json_option, overwrite_option, progress
+from ..common import echo_table, json_option, overwrite_option, progress, warnings_once
 
 if TYPE_CHECKING:
     from acquisition.geotag_results import GeotagResult
@@ -207,55 +207,57 @@ def command(
     if sync and offset_s is not None:
         raise click.UsageError("give either --offset-s or sync points (--sync, --sync-position), not both")
 
-    # Everything that can be checked without the log, before reading it (a log can take a while).
-    paths = prepare_images(
-        images,
-        out_dir,
-        dry_run=dry_run,
-        in_place=in_place,
-        backup_dir=backup_dir,
-        overwrite=overwrite,
-        sync=sync,
-    )
-    with _card_ahead(not dry_run and not in_place, images, paths, out_dir, overwrite) as (staging, ahead):
-        from acquisition.geotag import geotag_images
-        from acquisition.geotag_results import GeotagOptions
-        from acquisition.telemetry import read_log
+    with warnings_once("acquisition") as shown:  # each warning printed once
+        # Everything that can be checked without the log, before reading it (a log can take a while).
+        paths = prepare_images(
+            images,
+            out_dir,
+            dry_run=dry_run,
+            in_place=in_place,
+            backup_dir=backup_dir,
+            overwrite=overwrite,
+            sync=sync,
+        )
+        with _card_ahead(not dry_run and not in_place, images, paths, out_dir, overwrite) as (staging, ahead):
+            from acquisition.geotag import geotag_images
+            from acquisition.geotag_results import GeotagOptions
+            from acquisition.telemetry import read_log
 
-        options = GeotagOptions(tolerance_s=tolerance_s, max_gap_s=max_gap_s)
-        with _log_progress(not no_progress and not as_json) as log_report:
-            flight_log = read_log(log_path, log_report)
-        total = 2 * len(paths)
-        with progress("geotagging", total, enabled=not no_progress and not as_json) as advance:
-            seen = [0]
+            options = GeotagOptions(tolerance_s=tolerance_s, max_gap_s=max_gap_s)
+            with _log_progress(not no_progress and not as_json) as log_report:
+                flight_log = read_log(log_path, log_report)
+            total = 2 * len(paths)
+            with progress("geotagging", total, enabled=not no_progress and not as_json) as advance:
+                seen = [0]
 
-            def report(done: int, _total: int) -> None:
-                advance(done - seen[0])
-                seen[0] = done
+                def report(done: int, _total: int) -> None:
+                    advance(done - seen[0])
+                    seen[0] = done
 
-            result = geotag_images(
-                images,
-                flight_log,
-                out_dir,
-                offset_s=offset_s,
-                sync=sync,
-                dry_run=dry_run,
-                in_place=in_place,
-                backup_dir=backup_dir,
-                overwrite=overwrite,
-                progress=report,
-                options=options,
-                staging=staging,
-                ahead=ahead,
-                images=paths,
-            )
+                result = geotag_images(
+                    images,
+                    flight_log,
+                    out_dir,
+                    offset_s=offset_s,
+                    sync=sync,
+                    dry_run=dry_run,
+                    in_place=in_place,
+                    backup_dir=backup_dir,
+                    overwrite=overwrite,
+                    progress=report,
+                    options=options,
+                    staging=staging,
+                    ahead=ahead,
+                    images=paths,
+                )
 
-    if as_json:
-        from acquisition.geotag_results import report_json
+        if as_json:
+            from acquisition.geotag_results import report_json
 
-        click.echo(report_json(result), nl=False)
-    else:
-        _present(result)
+            click.echo(report_json(result), nl=False)
+        else:
+            _present(result)
+        shown.update(result.warnings)  # in the JSON, or printed by _present
     return result  # sfap/cli.py: exit 1 when frames were left untagged
 
 

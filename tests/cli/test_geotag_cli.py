@@ -396,3 +396,62 @@ def test_by_time_says_what_a_wrong_offset_costs_and_takes_a_sync_position(
     for frame in report["frames"]:
         k = int(frame["name"][1:-4])
         assert _metres((frame["lat_deg"], frame["lon_deg"]), truth[int(events.seq[20 + k])]) < 5.0
+
+
+def test_each_warning_is_printed_once(tmp_path: Path, sitl_log: FlightLog) -> None:
+    """The real command (its own process, its own logging set-up): a track with an empty
+    altitude cell (the reader warns, and the run carries it), frames placed by time (the run
+    warns), and a frame cut short before its end marker (its writer warns): each warning
+    appears on stderr exactly once."""
+    import subprocess
+    import sys
+
+    track = _csv_track(tmp_path / "track.csv", sitl_log)
+    lines = track.read_text().splitlines()
+    lines[3] = lines[3].rsplit(",", 1)[0] + ","
+    track.write_text("\n".join(lines) + "\n")
+    events = sitl_log.events
+    assert events is not None
+    for k, j in enumerate(range(20, 26)):
+        write_frame(tmp_path / "card" / f"F{k}.JPG", float(events.time_utc_s[j]))
+    cut = tmp_path / "card" / "F2.JPG"
+    cut.write_bytes(cut.read_bytes()[:-2])
+    command = ["geotag", str(tmp_path / "card"), "--log", str(track), "-o", str(tmp_path / "out")]
+    done = subprocess.run(
+        [sys.executable, "-m", "sfap", *command, "--offset-s", "0", "--no-progress"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert done.returncode == 0, done.stderr
+    warned = [line for line in done.stderr.splitlines() if "warning" in line.lower()]
+    said = ["column GPSAltitude is empty at line 4", "frames are placed by their capture time", "F2.JPG"]
+    for words in said:
+        assert sum(words in line for line in warned) == 1, (words, done.stderr)
+    assert len(warned) == len(said), done.stderr
+
+
+def test_warnings_held_and_not_shown_are_printed_at_the_end(capsys: pytest.CaptureFixture[str]) -> None:
+    """sfap.common.warnings_once: what the command showed is not printed again, what it did not
+    show is printed once when it ends (an error included); other loggers pass through."""
+    import logging
+
+    from sfap.common import warnings_once
+
+    stream = io.StringIO()
+    handler = logging.StreamHandler(stream)
+    root = logging.getLogger()
+    root.addHandler(handler)
+    try:
+        with pytest.raises(RuntimeError), warnings_once("acquisition") as shown:
+            logging.getLogger("acquisition.exif").warning("shown by the command")
+            logging.getLogger("acquisition").warning("only %s", "logged")
+            logging.getLogger("acquisition").warning("only %s", "logged")
+            logging.getLogger("acquisitions").warning("another package")
+            logging.getLogger("planner").warning("not held")
+            shown.add("shown by the command")
+            raise RuntimeError("the run failed")
+    finally:
+        root.removeHandler(handler)
+    assert stream.getvalue().splitlines() == ["another package", "not held"]
+    assert capsys.readouterr().err.splitlines() == ["warning: only logged"]
