@@ -8,9 +8,13 @@ for the interpreter lock that this process holds while it loads numpy, reads the
 headers), on the other core. Writing a frame then takes its copy (:meth:`CardAhead.take`) and
 writes the header over it (:func:`acquisition.exif.write_geotags`).
 
-The writers take the frames from the other end of the list, and a frame the worker has not
-reached yet is theirs: the destination file is created exclusively (``O_EXCL``) by whichever of
-the two comes first, and the other leaves it alone.
+The writers follow the worker, in its order: by the time this process has placed the frames,
+the worker has copied most of them, and the page a writer overwrites is still in the CPU's
+caches. A frame the worker has not reached when a writer comes to it is the writer's: the
+destination file is created exclusively (``O_EXCL``) by whichever of the two comes first, and
+the other leaves it alone. (Taking the frames from the other end, so that both sides copy, was
+slower: this process is the slower of the two, and its writers then copied 40-80 frames
+themselves; see BENCHMARKS.md.)
 
 A copy is used only when it is of the same file the header was read from: the source's identity
 (device, inode, size, modification time in ns) when copied, unchanged during the copy, equal to
@@ -64,7 +68,7 @@ class CardAhead:
     """``frames`` (source path, name in ``folder``) copied by a worker process.
 
     :meth:`start` launches it. :meth:`take` gives a frame's copy, or reserves its file for the
-    caller; :meth:`writing_order` is the order in which writers meet the worker last;
+    caller; :meth:`writing_order` is the order in which writers follow the worker;
     :meth:`wait` waits for the worker; :meth:`finish` stops it and removes the copies nobody
     took. All are thread-safe. Without a worker (it could not start, or it died) :meth:`take`
     returns None and the frames are written as usual."""
@@ -147,9 +151,10 @@ class CardAhead:
     # ---------------------------------------------------------------------------- the writers' side
 
     def writing_order(self, srcs: Sequence[str]) -> list[int]:
-        """Indexes into ``srcs``: the frames the worker copies last first."""
+        """Indexes into ``srcs``: the frames in the order the worker copies them (frames it does
+        not copy last)."""
         last = len(self._sources)
-        return sorted(range(len(srcs)), key=lambda k: -self._index.get(srcs[k], last))
+        return sorted(range(len(srcs)), key=lambda k: self._index.get(srcs[k], last))
 
     def take(self, src: str | os.PathLike[str]) -> Copied | None:
         """``src``'s file in the folder: its byte copy once the worker has made it, or an empty

@@ -1085,7 +1085,7 @@ def write_geotags(
     if workers < 1:
         raise GeotagError(f"workers is {workers}; give 1 or more")
     process_umask()  # read (it is set and reset) before any thread creates a file
-    # Against the copier, the frames it copies last first (see acquisition.card_ahead).
+    # Behind the copier, in its order (see acquisition.card_ahead).
     order = list(range(len(job_list))) if ahead is None else ahead.writing_order([j.src for j in job_list])
 
     def run(k: int) -> GeotagWriteResult:

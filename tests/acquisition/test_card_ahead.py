@@ -120,6 +120,16 @@ def test_a_frame_the_worker_has_not_reached_is_reserved_for_the_writer(tmp_path:
     assert (out / "A.JPG").read_bytes() == b"" and (out / "B.JPG").read_bytes() == b""
 
 
+def test_the_writers_follow_the_worker_in_its_order(tmp_path: Path) -> None:
+    """Jobs in any order are written in the worker's order (it copies the list from its start),
+    frames it does not copy last."""
+    frames = [(tmp_path / f"F{k}.JPG", f"F{k}.JPG") for k in range(6)]
+    copies = CardAhead(tmp_path / "out", frames)  # the order alone: no worker started
+    srcs = [str(frames[k][0]) for k in (4, 1, 5, 0, 3, 2)] + [str(tmp_path / "other.JPG")]
+    order = copies.writing_order(srcs)
+    assert [srcs[k] for k in order] == [str(src) for src, _ in frames] + [str(tmp_path / "other.JPG")]
+
+
 def test_finish_removes_every_copy_nobody_took(tmp_path: Path) -> None:
     paths = _card(tmp_path / "card", 40)
     out = tmp_path / "out"
