@@ -97,30 +97,32 @@ def progress(label: str, total: int, enabled: bool = True) -> Iterator[Callable[
 
 
 @contextmanager
-def warnings_once(prefix: str) -> Iterator[set[str]]:
-    """Print each warning once: a command that lists its result's warnings in its summary adds
-    them to the yielded set; what the loggers under ``prefix`` warn of meanwhile is held back
-    from stderr, and whatever of it the command did not print is printed when it ends (also on
-    an error), in order, once."""
+def warnings_once(*prefixes: str) -> Iterator[set[str]]:
+    """Print each warning once. A command that lists its result's warnings in its summary adds
+    them to the yielded set (and those it leaves out on purpose); what the loggers under
+    ``prefixes`` (package names) warn of meanwhile is held back from the log handlers that write
+    to stderr, and whatever of it is not in the set is printed when the command ends (also on an
+    error), in order, once."""
     import logging
 
     held: list[str] = []
-    shown: set[str] = set()
+    handled: set[str] = set()
+    dotted = tuple(prefix + "." for prefix in prefixes)
 
     def hold(record: logging.LogRecord) -> bool:
-        if record.levelno == logging.WARNING and (record.name + ".").startswith(prefix + "."):
+        if record.levelno == logging.WARNING and (record.name + ".").startswith(dotted):
             held.append(record.getMessage())
             return False
         return True
 
-    handlers = list(logging.getLogger().handlers)
+    handlers = [h for h in logging.getLogger().handlers if getattr(h, "stream", None) is sys.stderr]
     for handler in handlers:
         handler.addFilter(hold)
     try:
-        yield shown
+        yield handled
     finally:
         for handler in handlers:
             handler.removeFilter(hold)
         for message in dict.fromkeys(held):
-            if message not in shown:
+            if message not in handled:
                 click.echo(f"warning: {message}", err=True)

@@ -207,7 +207,7 @@ def command(
     if sync and offset_s is not None:
         raise click.UsageError("give either --offset-s or sync points (--sync, --sync-position), not both")
 
-    with warnings_once("acquisition") as shown:  # each warning printed once
+    with warnings_once("acquisition") as handled:  # each warning printed once
         # Everything that can be checked without the log, before reading it (a log can take a while).
         paths = prepare_images(
             images,
@@ -257,7 +257,7 @@ def command(
             click.echo(report_json(result), nl=False)
         else:
             _present(result)
-        shown.update(result.warnings)  # in the JSON, or printed by _present
+        handled.update(result.warnings)  # in the JSON, or printed by _present
     return result  # sfap/cli.py: exit 1 when frames were left untagged
 
 

@@ -6,9 +6,9 @@ from pathlib import Path
 
 import click
 
-from planner.plan_run import plan_spec
+from planner.plan_run import PlanRun, plan_spec
 
-from ..common import dumps_json, echo_table, json_option, overwrite_option, progress
+from ..common import dumps_json, echo_table, json_option, overwrite_option, progress, warnings_once
 
 _ROWS = (
     ("area", "area_m2", "{:,.0f} m2"),
@@ -88,10 +88,16 @@ def command(
 
     Example: sfap plan missions/bardenas-gully.toml -o out/gully
     """
-    run = plan_spec(spec_file, resume_from=resume_from, resume_record=resume_record)
+    with warnings_once("planner") as handled:  # each warning printed once
+        run = plan_spec(spec_file, resume_from=resume_from, resume_record=resume_record)
+        with progress("writing", run.file_count, enabled=not no_progress and not as_json) as advance:
+            run.write(out_dir, overwrite=overwrite, progress=advance)
+        _present(run, out_dir, as_json)
+        handled.update(run.plan.warnings)  # printed by _present, in the JSON, or left out on purpose
+
+
+def _present(run: PlanRun, out_dir: Path, as_json: bool) -> None:
     plan, sorties, spec = run.plan, run.sorties, run.spec
-    with progress("writing", run.file_count, enabled=not no_progress and not as_json) as advance:
-        run.write(out_dir, overwrite=overwrite, progress=advance)
     summary = run.summary()
     if as_json:
         click.echo(dumps_json({**summary, "output_dir": str(out_dir)}))

@@ -18,6 +18,16 @@ MULTISCALE = REPO / "missions" / "field-multiscale.toml"
 QUARRY_SORTIES = REPO / "missions" / "quarry-block-sorties.toml"
 
 
+def _areas_absolute(text: str) -> str:
+    """The multiscale spec's text for a copy elsewhere: its area files named by absolute path."""
+    text = text.replace(
+        'area = "field-concave.geojson"', f'area = "{REPO / "missions" / "field-concave.geojson"}"'
+    )
+    return text.replace(
+        'exclude = ["field-pylon.geojson"]', f'exclude = ["{REPO / "missions" / "field-pylon.geojson"}"]'
+    )
+
+
 def test_multiscale_example_flies_as_sorties_of_one_height_each(tmp_path: Path) -> None:
     out = tmp_path / "ms"
     result = CliRunner().invoke(cli, ["plan", str(MULTISCALE), "-o", str(out), "--json"])
@@ -57,14 +67,7 @@ def test_quarry_flies_as_sorties_of_one_battery(quarry_sorties_cli: tuple[Path, 
 
 def test_endurance_shorter_than_a_line_is_refused_without_files(tmp_path: Path) -> None:
     spec = tmp_path / "short.toml"
-    text = MULTISCALE.read_text().replace("endurance_s = 1500", "endurance_s = 60")
-    text = text.replace(
-        'area = "field-concave.geojson"', f'area = "{REPO / "missions" / "field-concave.geojson"}"'
-    )
-    text = text.replace(
-        'exclude = ["field-pylon.geojson"]', f'exclude = ["{REPO / "missions" / "field-pylon.geojson"}"]'
-    )
-    spec.write_text(text)
+    spec.write_text(_areas_absolute(MULTISCALE.read_text().replace("endurance_s = 1500", "endurance_s = 60")))
     out = tmp_path / "out"
     result = CliRunner().invoke(cli, ["plan", str(spec), "-o", str(out)])
     assert result.exit_code == 1
@@ -110,3 +113,33 @@ def test_gcp_plan_more_points_than_the_area_holds(tmp_path: Path) -> None:
     assert result.exit_code == 1
     assert "ask for fewer points" in result.stderr and "Traceback" not in result.output
     assert not out.exists()
+
+
+def test_warnings_are_printed_once_and_the_battery_one_not_with_sorties(tmp_path: Path) -> None:
+    """The real command (its own process and logging set-up). With sorties, the warning that the
+    flight needs more than one battery is left out on purpose (each sortie fits one); without
+    them it is printed, once, and it is in the JSON."""
+    import subprocess
+    import sys
+
+    def plan(spec: Path, *extra: str) -> subprocess.CompletedProcess[str]:
+        command = [sys.executable, "-m", "sfap", "plan", str(spec), "-o", str(tmp_path / spec.stem)]
+        return subprocess.run(
+            [*command, "--no-progress", *extra], capture_output=True, text=True, timeout=120
+        )
+
+    done = plan(MULTISCALE)
+    assert done.returncode == 0, done.stderr
+    assert "more than one battery" not in done.stderr and "3 sorties" in done.stderr
+    one = tmp_path / "one-battery.toml"
+    one.write_text(_areas_absolute(MULTISCALE.read_text().replace("endurance_s = 1500\n", "")))
+    done = plan(one)
+    assert done.returncode == 0, done.stderr
+    assert done.stderr.count("more than one battery") == 1, done.stderr
+    assert [line for line in done.stderr.splitlines() if line] == [
+        line for line in done.stderr.splitlines() if line.startswith("warning: ")
+    ]
+    done = plan(one, "--json", "--overwrite")
+    assert done.returncode == 0, done.stderr
+    assert done.stderr == ""
+    assert sum("more than one battery" in w for w in json.loads(done.stdout)["warnings"]) == 1
