@@ -29,11 +29,17 @@ A truncated or corrupt file yields what could be read and a warning that says wh
 
 from __future__ import annotations
 
+import contextlib
+import functools
 import logging
 import math
+import mmap
 import os
+import sys
 from collections import Counter
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
+from typing import Any, BinaryIO
 
 import numpy as np
 from numpy.typing import NDArray
@@ -44,6 +50,7 @@ from ..errors import TelemetryError
 from . import model
 from .gpstime import BootClock, fit_boot_clock, time_order
 from .model import PROGRESS_STEP_BYTES, AttitudeTrack, CameraEvents, FlightLog, PositionTrack, ReadProgress
+from .tlog_records import IrregularLogError, records
 
 log = logging.getLogger(__name__)
 
@@ -98,6 +105,18 @@ def _note_boot(r: _Reading, boot_s: float) -> None:
 
 
 def _collect(path: str, progress: ReadProgress | None = None) -> _Reading:
+    """Every message of the file, through :func:`_collect_records` when the file is regular,
+    else through pymavlink's stream parser (:func:`_collect_stream`), the reference."""
+    try:
+        return _collect_records(path, progress)
+    except IrregularLogError as why:
+        log.debug("%s: read by pymavlink's parser (%s)", path, why)
+    return _collect_stream(path, progress)
+
+
+def _collect_stream(path: str, progress: ReadProgress | None = None) -> _Reading:
+    """Every message of the file decoded by pymavlink's log reader (robust parsing: corrupt
+    bytes are skipped and counted)."""
     from pymavlink import mavutil
 
     r = _Reading(rows={name: [] for name in _WANTED})
@@ -125,25 +144,91 @@ def _collect(path: str, progress: ReadProgress | None = None) -> _Reading:
                 if r.first_bad_at is None:
                     r.first_bad_at = r.last_good_end
                 continue
-            r.n_messages += 1
-            r.last_good_end = conn.f.tell()
             src = (int(msg.get_srcSystem()), int(msg.get_srcComponent()))
-            if mtype == "HEARTBEAT" and r.vehicle is None:
-                heartbeat = mm.decode(msg)
-                if isinstance(heartbeat, mm.Heartbeat) and heartbeat.is_autopilot:
-                    r.vehicle = src  # the first autopilot heard; GCS, gimbals, cameras send INVALID
-            if mtype not in _WANTED:
-                continue
-            # Until the autopilot's first HEARTBEAT every source is taken as the vehicle.
-            from_vehicle = r.vehicle is None or src == r.vehicle
-            same_system = r.vehicle is None or src[0] == r.vehicle[0]
-            if not (same_system if mtype in _FROM_PAYLOADS else from_vehicle):
-                r.ignored[src] += 1
-                continue
-            _add_row(r, mm.decode(msg), float(msg._timestamp), from_vehicle)
+            _take(r, mtype, src, float(msg._timestamp), conn.f.tell(), functools.partial(_itself, msg))
     finally:
         conn.close()
     return r
+
+
+def _collect_records(path: str, progress: ReadProgress | None = None) -> _Reading:
+    """Every message of a regular file (:mod:`.tlog_records`); only the wanted ones, and the
+    HEARTBEATs until the vehicle is known, are decoded, by pymavlink. Raises
+    :class:`IrregularLogError` when the file is not regular."""
+    from pymavlink import mavutil
+    from pymavlink.generator.mavcrc import mcrf4xx
+
+    if mcrf4xx is None:  # fastcrc missing: no faster than pymavlink's own reader
+        raise IrregularLogError("no fastcrc")
+    try:
+        # The dialect pymavlink's reader would decode with: it picks it by the file's first
+        # frame (a MAVLink 2 frame switches it to the v2.0 module, for this process).
+        first = mavutil.mavlogfile(path, robust_parsing=True)
+        try:
+            first.recv_msg()
+            dialect = sys.modules[type(first.mav).__module__]
+        finally:
+            first.close()
+        with open(path, "rb") as f, _mapped(f) as data:
+            return _walk(data, dialect, mcrf4xx, progress)
+    except OSError as exc:
+        raise TelemetryError(f"cannot open {path}: {exc}") from exc
+
+
+@contextlib.contextmanager
+def _mapped(f: BinaryIO) -> Iterator[bytes | mmap.mmap]:
+    """The file's bytes, mapped (a long flight's log is not read into memory); b"" when empty."""
+    if os.fstat(f.fileno()).st_size == 0:
+        yield b""
+        return
+    with mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as data:
+        yield data
+
+
+def _walk(data: bytes | mmap.mmap, dialect: Any, mcrf4xx: Any, progress: ReadProgress | None) -> _Reading:
+    types = dialect.mavlink_map
+    crc_extra = {msg_id: t.crc_extra for msg_id, t in types.items()}
+    names = {msg_id: t.msgname for msg_id, t in types.items()}
+    decoder = dialect.MAVLink(None)
+    r = _Reading(rows={name: [] for name in _WANTED})
+    next_report = 0
+    for rx_s, start, end, msg_id, system, component in records(data, crc_extra, mcrf4xx):
+        if progress is not None and r.last_good_end >= next_report:
+            progress(r.last_good_end, len(data))
+            next_report = r.last_good_end + PROGRESS_STEP_BYTES
+        name = names.get(msg_id, "UNKNOWN")
+
+        def decoded(start: int = start, end: int = end) -> Any:
+            return decoder.decode(bytearray(data[start:end]))
+
+        _take(r, name, (system, component), rx_s, end, decoded)
+    return r
+
+
+def _itself(message: Any) -> Any:
+    return message
+
+
+def _take(
+    r: _Reading, mtype: str, src: tuple[int, int], rx_s: float, end: int, message: Callable[[], Any]
+) -> None:
+    """One message of the file (not corrupt), ending at byte ``end``: counted, and kept when
+    it is wanted; ``message()`` gives it decoded by pymavlink, called only then."""
+    r.n_messages += 1
+    r.last_good_end = end
+    if mtype == "HEARTBEAT" and r.vehicle is None:
+        heartbeat = mm.decode(message())
+        if isinstance(heartbeat, mm.Heartbeat) and heartbeat.is_autopilot:
+            r.vehicle = src  # the first autopilot heard; GCS, gimbals, cameras send INVALID
+    if mtype not in _WANTED:
+        return
+    # Until the autopilot's first HEARTBEAT every source is taken as the vehicle.
+    from_vehicle = r.vehicle is None or src == r.vehicle
+    same_system = r.vehicle is None or src[0] == r.vehicle[0]
+    if not (same_system if mtype in _FROM_PAYLOADS else from_vehicle):
+        r.ignored[src] += 1
+        return
+    _add_row(r, mm.decode(message()), rx_s, from_vehicle)
 
 
 def _add_row(r: _Reading, m: mm.Record | None, rx_s: float, from_vehicle: bool) -> None:
