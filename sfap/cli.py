@@ -18,21 +18,15 @@ import click
 
 from planner.errors import SfapError
 
-#: name -> (module in sfap.commands, one-line help). The order is the order of ``sfap --help``.
-COMMANDS: dict[str, tuple[str, str]] = {
-    "plan": ("plan", "Plan a survey mission from a mission spec (TOML)."),
-    "cameras": ("cameras", "List the built-in cameras, or show one."),
-    "upload": ("upload", "Upload a mission (.plan/.waypoints) to an autopilot and verify it."),
-    "download": ("download", "Download the mission stored on an autopilot to a file."),
-    "clear": ("clear", "Clear the mission stored on an autopilot."),
-    "sim": ("sim", "Run a simulated vehicle (ArduPilot or PX4 flavour) on a MAVLink URL."),
-    "monitor": ("monitor", "Record camera triggers and telemetry during a flight."),
-    "geotag": ("geotag", "Geotag frames from the flight's own telemetry log."),
-    "check": ("check", "Check coverage, overlap, B/H, GSD and blur of images or a plan."),
-    "handoff": ("handoff", "Hand the frames to COLMAP, ODM, NodeODM, Metashape or Pix4D; run and measure."),
-    "gcp-plan": ("gcp_plan", "Lay out ground control and check points over a planned survey."),
-}
-
+from .help_page import (
+    COMMANDS,
+    GROUP_HELP,
+    HELP_OPTION_NAMES,
+    QUIET_HELP,
+    VERBOSE_HELP,
+    VERSION_HELP,
+    help_width,
+)
 
 #: Commands whose arrays are small (a plan's stations, a camera table, a flight's track, a
 #: mission's items): numpy's OpenBLAS is loaded with one thread for them. With one per core it
@@ -59,27 +53,11 @@ def _debug_detail() -> None:
     logging.getLogger("sfap").debug("error detail", exc_info=True)
 
 
-def _help_width() -> int:
-    """click's own help width (the terminal's columns, at most 80, less 2, at least 50), found
-    without importing shutil: click imports it for this, with zlib, bz2 and lzma, a tenth of
-    `sfap --help`."""
-    columns = 80
-    try:
-        columns = int(os.environ["COLUMNS"])
-    except (KeyError, ValueError):
-        try:
-            if sys.__stdout__ is not None:
-                columns = os.get_terminal_size(sys.__stdout__.fileno()).columns
-        except (OSError, ValueError):
-            pass
-    return max(min(columns, 80) - 2, 50)
-
-
 class _Context(click.Context):
     def make_formatter(self) -> click.HelpFormatter:
         from click import formatting
 
-        width = self.terminal_width or formatting.FORCED_WIDTH or _help_width()
+        width = self.terminal_width or formatting.FORCED_WIDTH or help_width()
         return self.formatter_class(width=width, max_width=self.max_content_width)
 
 
@@ -141,7 +119,8 @@ def _print_version(ctx: click.Context, _param: click.Parameter, value: bool) -> 
 
 @click.group(
     cls=LazyGroup,
-    context_settings={"help_option_names": ["-h", "--help"]},
+    help=GROUP_HELP,
+    context_settings={"help_option_names": HELP_OPTION_NAMES},
 )
 @click.option(
     "--version",
@@ -149,16 +128,12 @@ def _print_version(ctx: click.Context, _param: click.Parameter, value: bool) -> 
     expose_value=False,
     is_eager=True,
     callback=_print_version,
-    help="Show the version and exit.",
+    help=VERSION_HELP,
 )
-@click.option("-v", "--verbose", count=True, help="More log output on stderr (-vv for debug).")
-@click.option("-q", "--quiet", is_flag=True, help="Only errors on stderr.")
+@click.option("-v", "--verbose", count=True, help=VERBOSE_HELP)
+@click.option("-q", "--quiet", is_flag=True, help=QUIET_HELP)
 def cli(verbose: int, quiet: bool) -> None:
-    """sfap: plan drone photo surveys, upload them, geotag the frames and check the coverage
-    in the field.
-
-    Example: sfap plan missions/bardenas-gully.toml -o out/gully
-    """
+    """The group: sets up logging for the command that runs (its text: help_page.GROUP_HELP)."""
     import logging
 
     level = logging.ERROR if quiet else (logging.WARNING, logging.INFO, logging.DEBUG)[min(verbose, 2)]
@@ -166,4 +141,5 @@ def cli(verbose: int, quiet: bool) -> None:
 
 
 def main() -> None:
+    """The click group itself, for callers that want it (the console script is sfap.entry.main)."""
     cli()
