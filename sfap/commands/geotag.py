@@ -146,6 +146,15 @@ def _card_ahead(
     show_default=True,
     help="Longest interval of the log's position track to interpolate over, seconds.",
 )
+@click.option(
+    "--camera-mount",
+    type=click.Choice(["gimbal", "fixed"]),
+    default="gimbal",
+    show_default=True,
+    help="How the camera is carried, for a log without gimbal angles: gimbal = stabilised, "
+    "looking straight down (as sfap's plans point it), heading the vehicle's; fixed = fixed to the "
+    "airframe, taking the vehicle's pitch and roll.",
+)
 @click.option("--dry-run", is_flag=True, help="Match and report; write nothing.")
 @click.option(
     "--in-place",
@@ -170,6 +179,7 @@ def command(
     sync_positions: tuple[SyncPoint, ...],
     tolerance_s: float | None,
     max_gap_s: float,
+    camera_mount: str,
     dry_run: bool,
     in_place: bool,
     backup_dir: Path | None,
@@ -219,11 +229,14 @@ def command(
             sync=sync,
         )
         with _card_ahead(not dry_run and not in_place, images, paths, out_dir, overwrite) as (staging, ahead):
+            from acquisition.attitude import CameraMount
             from acquisition.geotag import geotag_images
             from acquisition.geotag_results import GeotagOptions
             from acquisition.telemetry import read_log
 
-            options = GeotagOptions(tolerance_s=tolerance_s, max_gap_s=max_gap_s)
+            options = GeotagOptions(
+                tolerance_s=tolerance_s, max_gap_s=max_gap_s, camera_mount=CameraMount(camera_mount)
+            )
             with _log_progress(not no_progress and not as_json) as log_report:
                 flight_log = read_log(log_path, log_report)
             total = 2 * len(paths)
