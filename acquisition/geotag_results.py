@@ -82,9 +82,13 @@ class GeotagOptions:
 
     def __post_init__(self) -> None:
         if self.tolerance_s is not None and not (0.0 < self.tolerance_s <= 60.0):
-            raise InputError(f"tolerance {self.tolerance_s} s is outside 0-60 s")
+            raise InputError(
+                f"tolerance {self.tolerance_s:g} s: give a time above 0 s and at most 60 s (0 < s <= 60)"
+            )
         if not (0.0 < self.max_gap_s <= 3600.0):
-            raise InputError(f"max gap {self.max_gap_s} s is outside 0-3600 s")
+            raise InputError(
+                f"max gap {self.max_gap_s:g} s: give a time above 0 s and at most 3600 s (0 < s <= 3600)"
+            )
         if self.xy_accuracy_m < 0 or self.z_accuracy_m < 0:
             raise InputError("position accuracies must be >= 0 m")
 

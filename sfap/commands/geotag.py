@@ -32,6 +32,19 @@ def _finite(ctx: click.Context, param: click.Parameter, value: float | None) -> 
     return value
 
 
+def _seconds_within(most_s: float) -> Callable[[click.Context, click.Parameter, float | None], float | None]:
+    """A callback refusing a time that is not above 0 s and at most ``most_s`` (0 < t <= most)."""
+
+    def callback(ctx: click.Context, param: click.Parameter, value: float | None) -> float | None:
+        if value is not None and not (math.isfinite(value) and 0.0 < value <= most_s):
+            raise click.BadParameter(
+                f"{value:g} s: give a time above 0 s and at most {most_s:g} s (0 < s <= {most_s:g})"
+            )
+        return value
+
+    return callback
+
+
 def _sync_points(parse: Callable[[str], SyncPoint]) -> Callable[..., tuple[SyncPoint, ...]]:
     def callback(
         ctx: click.Context, param: click.Parameter, values: tuple[str, ...]
@@ -136,6 +149,7 @@ def _card_ahead(
     "--tolerance-s",
     type=float,
     default=None,
+    callback=_seconds_within(60.0),
     help="Largest capture-time residual of a frame/event pair, seconds. Default: 35 percent of the "
     "event interval, then 10 x the residual scatter.",
 )
@@ -143,6 +157,7 @@ def _card_ahead(
     "--max-gap-s",
     type=float,
     default=5.0,
+    callback=_seconds_within(3600.0),
     show_default=True,
     help="Longest interval of the log's position track to interpolate over, seconds.",
 )
