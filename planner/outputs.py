@@ -94,20 +94,35 @@ def _file_in_the_way(path: Path) -> Path | None:
     return None
 
 
-def cannot_write(target: str | os.PathLike[str], error: OSError, what: str = "output folder") -> OSError:
+def cannot_write(
+    target: str | os.PathLike[str], error: OSError, what: str = "output folder", where: Path | None = None
+) -> OSError:
     """``error`` (raised while writing ``target`` or its hidden staging) restated naming the path
-    the user gave and the fix, for the CLI's one line (an OSError: exit 1, the operation failed)."""
+    the user gave, the folder that refused (``where``, default its parent) and the fix, for the
+    CLI's one line (an OSError: exit 1, the operation failed)."""
     given = Path(target)
     reason = error.strerror or str(error)
-    parent = given.parent
+    folder = given.parent if where is None else where
     if error.errno in (errno.EACCES, errno.EPERM, errno.EROFS):
-        message = (
-            f"cannot write the {what} {given}: {parent} is not writable ({reason}); choose a place "
-            f"you can write to (-o), or make {parent} writable"
+        return OSError(
+            error.errno,
+            f"cannot write the {what} {given}: {folder} is not writable ({reason}); choose a place "
+            f"you can write to, or make {folder} writable",
         )
-    else:
-        message = f"cannot write the {what} {given}: {reason} (in {parent})"
-    return OSError(error.errno, message)
+    return OSError(error.errno, f"cannot write the {what} {given}: {reason} (in {folder})")
+
+
+def check_writable(target: str | os.PathLike[str], what: str = "output folder") -> None:
+    """Refuse, before any work, a ``target`` that cannot be created: a file where its path needs a
+    folder (bad input), or a nearest existing folder this process cannot write into."""
+    path = Path(target)
+    blocker = _file_in_the_way(path)
+    if blocker is not None:
+        raise OutputExistsError(f"{what} {path}: {blocker} is a file, not a folder; choose another path")
+    existing = path if path.is_dir() else next((p for p in path.parents if p.is_dir()), Path("."))
+    if not os.access(existing, os.W_OK | os.X_OK):
+        code = errno.EACCES
+        raise cannot_write(path, PermissionError(code, os.strerror(code)), what, where=existing) from None
 
 
 def check_output_dir(target: str | os.PathLike[str], *, overwrite: bool) -> Path:

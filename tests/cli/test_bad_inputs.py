@@ -162,3 +162,40 @@ def test_max_gap_states_its_range(tmp_path: Path, value: str) -> None:
         [*args, "--max-gap-s", value], 2, "--max-gap-s", "above 0 s and at most 3600 s", "(0 < s <= 3600)"
     )
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["sim", "--listen", "tcpin://127.0.0.1:0", "--duration-s", "nan"],
+        ["sim", "--listen", "tcpin://127.0.0.1:0", "--latency-s", "nan"],
+        ["sim", "--listen", "tcpin://127.0.0.1:0", "--loss-pct", "nan"],
+        ["sim", "--listen", "tcpin://127.0.0.1:0", "--speedup", "inf"],
+        ["monitor", "--connect", "tcp://127.0.0.1:9", "--heartbeat-timeout-s", "nan", "-o", "m"],
+        ["monitor", "--connect", "tcp://127.0.0.1:9", "--reconnect-timeout-s", "nan", "-o", "m"],
+    ],
+)
+def test_a_timeout_or_rate_of_nan_is_refused_by_name(
+    args: list[str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """click's FloatRange lets NaN through (every comparison with it is false): a timeout of nan
+    would wait forever."""
+    monkeypatch.chdir(tmp_path)
+    option = next(a for a in args if a.startswith("--") and a not in ("--listen", "--connect"))
+    _refused(args, 2, f"'{option}'", "is not a finite number")
+    assert not any(tmp_path.iterdir())
+
+
+def test_what_monitor_and_sim_will_write_is_checked_before_they_start(
+    tmp_path: Path, read_only_dir: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Nothing listens on the port: the folder's problem must be found before connecting."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "afile").write_text("x")
+    monitor = ["monitor", "--connect", "tcp://127.0.0.1:9", "--heartbeat-timeout-s", "0.5"]
+    _refused([*monitor, "-o", "afile/rec"], 2, "afile is a file, not a folder")
+    _refused([*monitor, "-o", "ro/rec"], 1, "cannot write the recording folder ro/rec: ro is not writable")
+    sim = ["sim", "--listen", "tcpin://127.0.0.1:0", "--duration-s", "0.1"]
+    _refused([*sim, "--frames", "afile/frames"], 2, "frames folder afile/frames: afile is a file")
+    _refused([*sim, "--tlog", "ro/sim.tlog"], 1, "cannot write the tlog ro/sim.tlog: ro is not writable")
+    assert not any(read_only_dir.iterdir()) and (tmp_path / "afile").read_text() == "x"
