@@ -1,5 +1,8 @@
-"""map.png drawn with Pillow: the same map as :func:`planner.mapplot.render_map_figure`, at a
-fraction of the cost.
+"""map.png drawn with Pillow: the map of :func:`planner.mapplot.render_map_figure`, at a fraction
+of the cost, read at its scale (issue 24): footprints and stations only when they can be told
+apart (:func:`planner.maplayout.simplification`; else the legend says what was left out and which
+file has it), one colour per pass group (:func:`planner.maplayout.pass_styles`), and a plan's
+sorties as outlines with their numbers. The matplotlib figure keeps the simpler drawing.
 
 matplotlib costs about 0.3 s to import and 0.2-0.3 s to draw and encode this map, more than
 planning and writing every other output of a small plan together; Pillow imports in about
