@@ -26,9 +26,18 @@ if TYPE_CHECKING:
     from acquisition.geotag_results import GeotagResult
 
 
+#: The largest camera clock offset taken: about 50 years (a clock never set reads 2000-01-01).
+MAX_OFFSET_S = 50 * 365.25 * 86400.0
+
+
 def _finite(ctx: click.Context, param: click.Parameter, value: float | None) -> float | None:
     if value is not None and not math.isfinite(value):
         raise click.BadParameter(f"{value} is not a finite number of seconds")
+    if value is not None and abs(value) > MAX_OFFSET_S:
+        raise click.BadParameter(
+            f"{value:g} s is more than 50 years; give the camera clock minus UTC in seconds "
+            f"(e.g. 3600 for a camera an hour ahead)"
+        )
     return value
 
 

@@ -199,3 +199,25 @@ def test_what_monitor_and_sim_will_write_is_checked_before_they_start(
     _refused([*sim, "--frames", "afile/frames"], 2, "frames folder afile/frames: afile is a file")
     _refused([*sim, "--tlog", "ro/sim.tlog"], 1, "cannot write the tlog ro/sim.tlog: ro is not writable")
     assert not any(read_only_dir.iterdir()) and (tmp_path / "afile").read_text() == "x"
+
+
+def test_geotag_refuses_an_absurd_offset_and_a_backup_folder_below_a_file(
+    tmp_path: Path, read_only_dir: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.chdir(tmp_path)
+    write_frame(tmp_path / "card" / "IMG_0001.JPG", 1_700_000_000.0)
+    (tmp_path / "flight.tlog").write_bytes(b"")
+    (tmp_path / "afile").write_text("x")
+    args = ["geotag", "card", "--log", "flight.tlog", "--no-progress"]
+    _refused([*args, "-o", "out", "--offset-s", "1e12"], 2, "--offset-s", "more than 50 years")
+    _refused(
+        [*args, "-o", "rep", "--in-place", "--backup-dir", "afile/b"],
+        2,
+        "backup folder afile/b: afile is a file",
+    )
+    _refused(
+        [*args, "-o", "rep", "--in-place", "--backup-dir", "ro/b"],
+        1,
+        "cannot write the backup folder ro/b: ro is not writable",
+    )
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["afile", "card", "flight.tlog", "ro"]
