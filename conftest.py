@@ -62,3 +62,164 @@ def quarry_sorties_cli(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, 
             done.write_text(_json.dumps([result.exit_code, result.stdout, result.output]))
     exit_code, stdout, output = _json.loads(done.read_text())
     return out, exit_code, stdout, output
+
+
+# ------------------------------------------------------------------ the real data in ../shared/data
+# A clone without ../shared runs the suite: a test that needs the real data skips with one reason
+# naming the folder and how to get it, and fails instead where CI=true. Nothing is asked of the
+# tests: before any runs, each test's code is read (the test, the functions of the test files it
+# calls, its fixtures' code, its parameters) for a path under SHARED_DATA; a reference the reading
+# cannot see (a path built at run time) is caught when it raises FileNotFoundError under the folder.
+# `shared_data.needs(...)` (a mark) and `shared_data.require(...)` (a call) say it explicitly.
+import inspect as _inspect  # noqa: E402
+import types as _types  # noqa: E402
+from collections.abc import Callable, Generator, Iterator  # noqa: E402
+from pathlib import PurePath as _PurePath  # noqa: E402
+from typing import Any as _Any  # noqa: E402
+
+from shared_data import SHARED_DATA, absent_reason, answer_absent, in_ci, is_shared  # noqa: E402
+
+_TESTS = _ROOT / "tests"
+_SHARED_KEY = pytest.StashKey[list[Path]]()
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    config.addinivalue_line(
+        "markers",
+        "shared_data(path): the test needs this path under ../shared/data (see tests/support/shared_data.py)",
+    )
+
+
+def _shared_in_value(value: _Any) -> Iterator[Path]:
+    if isinstance(value, _PurePath | str) and is_shared(Path(value)):
+        yield Path(value)
+    elif isinstance(value, list | tuple | set | frozenset) and len(value) < 1000:
+        for element in value:
+            if isinstance(element, _PurePath | str) and is_shared(Path(element)):
+                yield Path(element)
+
+
+def _is_test_code(obj: _Any) -> bool:
+    code = getattr(obj, "__code__", None)
+    filename = getattr(code, "co_filename", "")
+    if not filename:
+        return False
+    name = Path(filename).name
+    return filename.startswith(str(_TESTS)) or name.startswith("test_") or name == "conftest.py"
+
+
+def _shared_in_function(func: Callable[..., _Any], seen: set[int]) -> Iterator[Path]:
+    """The paths under SHARED_DATA that `func`'s code names: its globals, closures and default
+    arguments, and those of the test-file functions and classes it names, recursively."""
+    func = _inspect.unwrap(func)
+    if id(func) in seen:
+        return
+    seen.add(id(func))
+    namespace: dict[str, _Any] = getattr(func, "__globals__", {})
+    for default in (getattr(func, "__defaults__", None) or ()) + tuple(
+        (getattr(func, "__kwdefaults__", None) or {}).values()
+    ):
+        yield from _shared_in_value(default)
+    for cell in getattr(func, "__closure__", None) or ():
+        try:
+            contents = cell.cell_contents
+        except ValueError:  # an empty cell
+            continue
+        yield from _shared_in_value(contents)
+    codes = [getattr(func, "__code__", None)]
+    while codes:
+        code = codes.pop()
+        if code is None:
+            continue
+        for name in code.co_names:
+            if name not in namespace:
+                continue
+            value = namespace[name]
+            yield from _shared_in_value(value)
+            if _inspect.isfunction(value) and _is_test_code(value):
+                yield from _shared_in_function(value, seen)
+            elif _inspect.isclass(value) and id(value) not in seen:
+                seen.add(id(value))
+                for member in vars(value).values():
+                    member = getattr(member, "__func__", member)
+                    if _inspect.isfunction(member) and _is_test_code(member):
+                        yield from _shared_in_function(member, seen)
+        codes.extend(const for const in code.co_consts if isinstance(const, _types.CodeType))
+
+
+def _shared_needed(item: pytest.Item) -> list[Path]:
+    needed: list[Path] = []
+    for mark in item.iter_markers("shared_data"):
+        needed.extend(Path(arg) for arg in mark.args)
+    seen: set[int] = set()
+    function = getattr(item, "obj", None)
+    if function is not None:
+        needed.extend(_shared_in_function(function, seen))
+        instance_class = getattr(item, "cls", None)
+        if instance_class is not None:  # the methods of a test class it calls through self
+            for member in vars(instance_class).values():
+                if _inspect.isfunction(member) and _is_test_code(member):
+                    needed.extend(_shared_in_function(member, seen))
+    callspec = getattr(item, "callspec", None)
+    if callspec is not None:
+        for value in callspec.params.values():
+            needed.extend(_shared_in_value(value))
+    fixtureinfo = getattr(item, "_fixtureinfo", None)
+    if fixtureinfo is not None:
+        for definitions in fixtureinfo.name2fixturedefs.values():
+            for definition in definitions:
+                needed.extend(_shared_in_function(definition.func, seen))
+    return sorted(set(needed))
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    for item in items:
+        needed = _shared_needed(item)
+        if needed:
+            item.stash[_SHARED_KEY] = needed
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_runtest_setup(item: pytest.Item) -> None:
+    """Before the skipping plugin's own setup (a conftest hook runs before the built-in ones of
+    its rank): an empty parameter set or a test's own skipif must not hide the absence in CI."""
+    reason = absent_reason(item.stash.get(_SHARED_KEY, []))
+    if reason is not None:
+        answer_absent(reason)
+
+
+def _answer_missing_file(error: OSError) -> None:
+    filename = error.filename
+    if filename is not None and is_shared(Path(str(filename))):
+        reason = absent_reason([Path(str(filename))])
+        if reason is not None:
+            answer_absent(reason)
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_call(item: pytest.Item) -> Generator[None, None, None]:
+    try:
+        return (yield)
+    except (FileNotFoundError, NotADirectoryError) as error:
+        _answer_missing_file(error)
+        raise
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_fixture_setup(
+    fixturedef: pytest.FixtureDef[_Any], request: pytest.FixtureRequest
+) -> Generator[None, None, _Any]:
+    try:
+        return (yield)
+    except (FileNotFoundError, NotADirectoryError) as error:
+        _answer_missing_file(error)
+        raise
+
+
+def pytest_report_header(config: pytest.Config) -> str:
+    state = (
+        "present"
+        if SHARED_DATA.is_dir()
+        else "ABSENT (tests needing it " + ("fail, CI=true)" if in_ci() else "skip)")
+    )
+    return f"real data: {SHARED_DATA} {state}"

@@ -161,6 +161,28 @@ class GimbalMode(StrEnum):
     BODY = "body"
 
 
+class CameraMount(StrEnum):
+    """How the camera is carried, which decides the camera's attitude when the log has no gimbal
+    angles (a log that has them gives the camera's own, whatever this says).
+
+    - ``gimbal``: on a stabilised gimbal looking straight down, as every sfap plan points it (the
+      mission's first item): the vehicle's pitch and roll are the gimbal's to cancel, not the
+      camera's; the camera's heading is the vehicle's.
+    - ``fixed``: fixed to the airframe looking down (a fixed wing's hatch, no gimbal): the
+      vehicle's attitude is the camera's.
+    """
+
+    GIMBAL = "gimbal"
+    FIXED = "fixed"
+
+
+def heading_only_deg(yaw_deg: ArrayLike) -> tuple[F64, F64, F64]:
+    """(yaw, pitch, roll) of a nadir camera on a stabilised gimbal that follows the vehicle's
+    heading: the heading, and no pitch or roll (the convention of the module docstring)."""
+    yaw = np.asarray(yaw_deg, float)
+    return yaw, np.zeros_like(yaw), np.zeros_like(yaw)
+
+
 # ned_from_camera of a gimbal times this = a virtual airframe whose down axis is the boresight.
 _NADIR_FROM_FORWARD = quat_from_euler_deg(0.0, 90.0, 0.0)
 

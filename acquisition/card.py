@@ -13,7 +13,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from planner.errors import InputError
-from planner.outputs import check_output_dir
+from planner.outputs import check_output_dir, check_writable
 
 from .sync_points import SyncPoint
 
@@ -87,6 +87,8 @@ def prepare_images(
         raise InputError(f"no JPEG images (.jpg, .jpeg) under {image_dir}: give the card's DCIM folder")
     if in_place and backup_dir is None:
         raise InputError("--in-place needs --backup-dir: the originals are copied there first")
+    if in_place and backup_dir is not None and not dry_run:
+        check_writable(backup_dir, "backup folder")
     if not dry_run:
         check_output_dir(out_dir, overwrite=overwrite)
         if not in_place and Path(out_dir).resolve() == Path(image_dir).resolve():

@@ -13,13 +13,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .attitude import camera_attitude_deg
+from .attitude import CameraMount, camera_attitude_deg, heading_only_deg
 from .geotag_frames import Frame
 from .geotag_offset import offset_cost_warning, track_speeds_m_s
 from .geotag_results import FrameResult, FrameStatus, GeotagOptions, OffsetSource, PositionSource
 from .interpolation import InterpolatedPose, PoseInterpolation, interpolate_poses
 from .matching import Matching
-from .telemetry.model import CameraEvents, FlightLog
+from .telemetry.model import AttitudeTrack, CameraEvents, FlightLog
 
 F64 = NDArray[np.float64]
 
@@ -48,7 +48,32 @@ def _accuracy(options: GeotagOptions, speed_m_s: float, timing_s: float) -> tupl
     return xy, options.z_accuracy_m
 
 
-def _event_pose(events: CameraEvents, j: int) -> InterpolatedPose | None:
+def camera_attitude_track(log: FlightLog, mount: CameraMount) -> tuple[AttitudeTrack | None, str | None]:
+    """The attitude track the camera's attitude is taken from, and a sentence saying which when
+    the log has no gimbal angles: the vehicle's (a camera fixed to the airframe), or the
+    vehicle's heading alone (a camera on a stabilised gimbal looks straight down whatever the
+    vehicle's pitch and roll: writing those as the camera's would tilt a nadir block)."""
+    vehicle = log.attitudes
+    if vehicle is None or len(vehicle) == 0:
+        return vehicle, None
+    if log.gimbal is not None and len(log.gimbal) > 0:
+        return vehicle, None
+    if mount is CameraMount.FIXED:
+        return vehicle, (
+            "attitude: the vehicle's (the log has no gimbal angles; --camera-mount fixed: the "
+            "camera is fixed to the airframe)"
+        )
+    yaw, pitch, roll = heading_only_deg(vehicle.yaw_deg)
+    heading = AttitudeTrack(
+        time_utc_s=vehicle.time_utc_s, roll_deg=roll, pitch_deg=pitch, yaw_deg=yaw, source=vehicle.source
+    )
+    return heading, (
+        "attitude: the camera looking straight down on a stabilised gimbal, heading the vehicle's "
+        "(the log has no gimbal angles); give --camera-mount fixed for a camera fixed to the airframe"
+    )
+
+
+def _event_pose(events: CameraEvents, j: int, mount: CameraMount) -> InterpolatedPose | None:
     if events.lat_deg is None or events.lon_deg is None:
         return None
 
@@ -57,7 +82,9 @@ def _event_pose(events: CameraEvents, j: int) -> InterpolatedPose | None:
 
     yaw, pitch, roll = col(events.yaw_deg), col(events.pitch_deg), col(events.roll_deg)
     if yaw is not None and pitch is not None and roll is not None:
-        cy, cp, cr = camera_attitude_deg(([yaw], [pitch], [roll]))
+        # The event's attitude is the vehicle's (DataFlash CAM R, P, Y; MRK has none).
+        vehicle = ([yaw], [pitch], [roll]) if mount is CameraMount.FIXED else heading_only_deg([yaw])
+        cy, cp, cr = camera_attitude_deg(vehicle)
         yaw, pitch, roll = float(cy[0]), float(cp[0]), float(cr[0])
     else:
         yaw = pitch = roll = None
@@ -104,12 +131,15 @@ def place_frames(
         else:
             place_times.append(float(utc_of_frame[k]))
 
+    attitudes, attitude_note = camera_attitude_track(log, options.camera_mount)
+    if attitude_note is not None and timed:
+        warnings.append(attitude_note)
     interpolation: PoseInterpolation | None = None
     if log.positions is not None and len(log.positions) > 0 and place_times:
         interpolation = interpolate_poses(
             place_times,
             positions=log.positions,
-            attitudes=log.attitudes,
+            attitudes=attitudes,
             gimbal=log.gimbal,
             gimbal_mode=options.gimbal_mode,
             max_gap_s=options.max_gap_s,
@@ -146,7 +176,7 @@ def place_frames(
             base["event_seq"] = int(events.seq[j])
             base["time_residual_s"] = residual_of.get(k)
             if options.position_source is not PositionSource.TRACK:
-                event_pose = _event_pose(events, j)
+                event_pose = _event_pose(events, j, options.camera_mount)
             else:
                 event_pose = None
             if prefer_event and event_pose is not None:

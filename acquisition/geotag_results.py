@@ -15,7 +15,7 @@ from typing import Any
 from planner.errors import InputError
 from planner.outputs import json_safe
 
-from .attitude import GimbalMode
+from .attitude import CameraMount, GimbalMode
 from .interpolation import iso_utc
 
 REPORT_NAME = "geotag_report.json"
@@ -67,6 +67,8 @@ class GeotagOptions:
       GNSS by default); frames placed by time add speed x timing scatter.
     - ``place_extra_by_time``: place frames that have no event at their corrected capture time.
     - ``gimbal_mode``: see :class:`GimbalMode`.
+    - ``camera_mount``: see :class:`CameraMount` (what the camera's attitude is when the log has
+      no gimbal angles).
     """
 
     tolerance_s: float | None = None
@@ -76,12 +78,17 @@ class GeotagOptions:
     place_extra_by_time: bool = True
     position_source: PositionSource = PositionSource.AUTO
     gimbal_mode: GimbalMode = GimbalMode.EARTH
+    camera_mount: CameraMount = CameraMount.GIMBAL
 
     def __post_init__(self) -> None:
         if self.tolerance_s is not None and not (0.0 < self.tolerance_s <= 60.0):
-            raise InputError(f"tolerance {self.tolerance_s} s is outside 0-60 s")
+            raise InputError(
+                f"tolerance {self.tolerance_s:g} s: give a time above 0 s and at most 60 s (0 < s <= 60)"
+            )
         if not (0.0 < self.max_gap_s <= 3600.0):
-            raise InputError(f"max gap {self.max_gap_s} s is outside 0-3600 s")
+            raise InputError(
+                f"max gap {self.max_gap_s:g} s: give a time above 0 s and at most 3600 s (0 < s <= 3600)"
+            )
         if self.xy_accuracy_m < 0 or self.z_accuracy_m < 0:
             raise InputError("position accuracies must be >= 0 m")
 

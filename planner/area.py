@@ -38,6 +38,8 @@ _CRS84_NAMES = {
 def load_polygons(path: str | Path) -> list[Polygon]:
     """Every polygon in a GeoJSON (.geojson/.json) or KML (.kml) file, lon/lat degrees."""
     file = Path(path)
+    if file.is_dir():
+        raise AreaError(f"area file {file} is a folder; give the polygon's file (GeoJSON or KML) in the spec")
     if not file.is_file():
         raise AreaError(f"area file {file} does not exist; check the path in the mission spec")
     suffix = file.suffix.lower()
@@ -51,10 +53,27 @@ def load_polygons(path: str | Path) -> list[Polygon]:
             f"polygon in WGS84"
         )
     if not polygons:
+        if _holds_lines(file):
+            raise AreaError(
+                f"area file {file} holds a line, not a polygon: for a corridor along it set "
+                f"corridor_width_m in the spec; for a block draw the survey area as a Polygon"
+            )
         raise AreaError(f"area file {file} holds no polygon; draw the survey area as a Polygon")
     for polygon in polygons:
         _check_polygon(polygon, file)
     return polygons
+
+
+def _holds_lines(file: Path) -> bool:
+    """Whether the area file holds a LineString (a corridor's centre line given as a block's area)."""
+    try:
+        if file.suffix.lower() == ".kml":
+            return any(True for _ in _iter_local(_read_kml(file), "LineString"))
+        return bool(
+            _geojson_geometries(_read_geojson(file, "the area"), ("LineString", "MultiLineString"), file)
+        )
+    except AreaError:
+        return False
 
 
 def _check_ring(coords: Sequence[Sequence[float]], file: Path, what: str) -> list[tuple[float, float]]:

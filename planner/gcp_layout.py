@@ -24,8 +24,9 @@ The steps:
    and each gets the candidate nearest its centre.
 4. Check points: farthest-point sampling over every candidate, away from the GCPs and each other.
 
-Every point keeps ``min_separation_m`` from every other; when the area cannot hold that many, a
-:class:`~planner.errors.PlanningError` names how many it holds and the fix.
+Every point keeps ``min_separation_m`` from every other. A request the area cannot meet (that many
+points, that margin, that many frames) is bad input: the :class:`~planner.errors.InputError` names
+the options of `sfap gcp-plan` and the figure that fits.
 
 Expected accuracy (a rule of thumb, stated as one): with well-distributed control and a good
 block, check-point RMSE of about 1-2 GSD horizontally and 1.5-3 GSD vertically; published SfM
@@ -38,14 +39,14 @@ The survey of each target adds its own error (a GNSS RTK rover: about 1-2 cm hor
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import shapely
 from numpy.typing import NDArray
 from shapely.geometry import MultiPolygon, Polygon
 
-from .errors import InputError, PlanningError
+from .errors import InputError
 from .plan import SurveyPlan
 
 #: Candidates on the outline and inside, at most (the grid step grows with the area).
@@ -66,19 +67,35 @@ class GcpOptions:
     min_separation_m: float = 30.0  # between any two points
 
     def __post_init__(self) -> None:
-        if self.gcp_count < 3:
+        if not isinstance(self.gcp_count, int) or self.gcp_count < 3:
             raise InputError(
-                f"gcp count = {self.gcp_count}: a block needs at least 3 GCPs to be georeferenced "
+                f"--gcp {self.gcp_count}: a block needs at least 3 GCPs to be georeferenced "
                 f"(more is better: 5 and above); ask for 3 or more"
             )
-        if self.check_count < 0:
-            raise InputError(f"check count = {self.check_count} must be 0 or more")
-        if self.min_frames < 1:
-            raise InputError(f"min frames = {self.min_frames} must be 1 or more")
+        if not isinstance(self.check_count, int) or self.check_count < 0:
+            raise InputError(f"--check {self.check_count}: the number of check points must be 0 or more")
+        if not isinstance(self.min_frames, int) or self.min_frames < 1:
+            raise InputError(
+                f"--min-frames {self.min_frames}: each point must be seen by 1 planned frame or more "
+                f"(5 or more for a good intersection)"
+            )
         for name in ("clearance_m", "edge_margin_m", "min_separation_m"):
             value = getattr(self, name)
+            if not isinstance(value, int | float):
+                raise InputError(f"{OPTION_NAMES[name]} {value!r}: give a distance in metres")
             if not (math.isfinite(value) and value >= 0):
-                raise InputError(f"{name} = {value} must be a distance of 0 m or more")
+                raise InputError(f"{OPTION_NAMES[name]} {value:g}: give a distance of 0 m or more")
+
+
+#: The options of `sfap gcp-plan` that set each field, for messages.
+OPTION_NAMES = {
+    "gcp_count": "--gcp",
+    "check_count": "--check",
+    "min_frames": "--min-frames",
+    "clearance_m": "--clearance-m",
+    "edge_margin_m": "--edge-margin-m",
+    "min_separation_m": "--min-separation-m",
+}
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -142,6 +159,35 @@ def usable_ground(plan: SurveyPlan, options: GcpOptions) -> Polygon | MultiPolyg
     return ground
 
 
+def _largest(leaves_ground: object, top: float) -> float:
+    """The largest value in [0, top] for which ``leaves_ground(value)`` (monotonic: true below
+    some value) holds, to 0.1 m below."""
+    assert callable(leaves_ground)
+    lo, hi = 0.0, top
+    for _ in range(40):
+        mid = (lo + hi) / 2
+        lo, hi = (mid, hi) if leaves_ground(mid) else (lo, mid)
+    return math.floor(lo * 10) / 10
+
+
+def _no_ground_message(plan: SurveyPlan, options: GcpOptions) -> str:
+    """Why no ground is left for targets, naming the options and the figure that fits."""
+    edge, clear = options.edge_margin_m, options.clearance_m
+    lead = f"--edge-margin-m {edge:g} and --clearance-m {clear:g} leave no ground for targets in this area"
+
+    def ground_with(edge_m: float, clearance_m: float) -> bool:
+        trial = replace(options, edge_margin_m=edge_m, clearance_m=clearance_m)
+        return not usable_ground(plan, trial).is_empty
+
+    if ground_with(0.0, clear):
+        fits = _largest(lambda e: ground_with(e, clear), edge)
+        return f"{lead}: ask for --edge-margin-m {fits:g} or less (a target needs ground around it)"
+    if ground_with(edge, 0.0):
+        fits = _largest(lambda c: ground_with(edge, c), clear)
+        return f"{lead}: ask for --clearance-m {fits:g} or less"
+    return f"{lead}: lower both (the exclusions cover the area)"
+
+
 def frame_counts(plan: SurveyPlan, x_m: NDArray[np.float64], y_m: NDArray[np.float64]) -> NDArray[np.int64]:
     """How many planned footprints hold each point (every pass, obliques included)."""
     corners = plan.stations.footprint_xy_m
@@ -159,11 +205,7 @@ def plan_gcps(plan: SurveyPlan, options: GcpOptions) -> GcpLayout:
     """Lay out ``options.gcp_count`` GCPs and ``options.check_count`` check points (module docstring)."""
     ground = usable_ground(plan, options)
     if ground.is_empty:
-        raise PlanningError(
-            f"no ground is left for targets once {options.edge_margin_m:g} m along the edges and "
-            f"{options.clearance_m:g} m around the exclusions are kept clear; lower edge_margin_m or "
-            f"clearance_m"
-        )
+        raise InputError(_no_ground_message(plan, options))
     ox, oy = _outline_candidates(ground, options.min_separation_m)
     gx, gy = _grid_candidates(ground)
     x = np.concatenate([ox, gx])
@@ -172,9 +214,11 @@ def plan_gcps(plan: SurveyPlan, options: GcpOptions) -> GcpLayout:
     counts = frame_counts(plan, x, y)
     seen = counts >= options.min_frames
     if not seen.any():
-        raise PlanningError(
-            f"no point of the usable ground is seen by {options.min_frames} planned frames (the most is "
-            f"{int(counts.max()) if counts.size else 0}); lower the minimum frame count or raise the overlaps"
+        most = int(counts.max()) if counts.size else 0
+        raise InputError(
+            f"--min-frames {options.min_frames}: no point of the usable ground is seen by that many "
+            f"planned frames; the most any point gets is {most}: ask for --min-frames {max(most, 1)} "
+            f"or fewer, or plan with higher overlaps"
         )
     x, y, on_outline, counts = x[seen], y[seen], on_outline[seen], counts[seen]
     xy = np.column_stack([x, y])
@@ -209,13 +253,21 @@ def plan_gcps(plan: SurveyPlan, options: GcpOptions) -> GcpLayout:
     if n_gcp == options.gcp_count:
         _farthest(xy, np.arange(len(x)), chosen, placement, options.check_count, sep, "check")
     if len(chosen) < wanted:
-        holds = _capacity(xy, sep, 4 * wanted)
-        raise PlanningError(
-            f"only {len(chosen)} of the {wanted} points asked for ({options.gcp_count} GCPs and "
-            f"{options.check_count} check points) could be laid {sep:g} m apart where {options.min_frames} "
-            f"planned frames see them (with {options.edge_margin_m:g} m from the edges and "
-            f"{options.clearance_m:g} m from exclusions; the area holds about {holds} such points at "
-            f"most); ask for fewer points (--gcp, --check) or lower --min-separation-m"
+        fits = len(chosen)
+        asked = (
+            f"--gcp {options.gcp_count} --check {options.check_count} asks for {wanted} points {sep:g} m "
+            f"apart where {options.min_frames} planned frames see them ({options.edge_margin_m:g} m inside "
+            f"the edges, {options.clearance_m:g} m from exclusions)"
+        )
+        if fits < 3:
+            raise InputError(
+                f"{asked}: only {fits} fit{'s' if fits == 1 else ''}, and a block needs 3 GCPs: lower "
+                f"--min-separation-m or --edge-margin-m"
+            )
+        checks = min(options.check_count, fits - 3)
+        raise InputError(
+            f"{asked}: only {fits} fit; ask for {fits} points or fewer (e.g. --gcp {fits - checks} "
+            f"--check {checks}), or lower --min-separation-m"
         )
     lon, lat = plan.frame.to_lonlat(xy[chosen, 0], xy[chosen, 1])
     points = []
@@ -363,11 +415,3 @@ def _nearest(pts: NDArray[np.float64], centres: NDArray[np.float64]) -> NDArray[
         d = np.hypot(chunk[:, None, 0] - centres[None, :, 0], chunk[:, None, 1] - centres[None, :, 1])
         labels[start : start + 4096] = np.argmin(d, axis=1)
     return labels
-
-
-def _capacity(xy: NDArray[np.float64], sep: float, most: int) -> int:
-    """How many candidates greedy farthest-point sampling places ``sep`` apart (up to ``most``)."""
-    chosen: list[int] = []
-    placement: list[str] = []
-    _farthest(xy, np.arange(len(xy)), chosen, placement, min(most, len(xy)), sep, "any")
-    return len(chosen)

@@ -7,10 +7,11 @@ import csv
 import io
 import json
 from pathlib import Path
+from typing import Any
 from xml.sax.saxutils import escape
 
 from .gcp_layout import GcpLayout, GcpOptions, plan_gcps
-from .outputs import atomic_write_text, staged_output_dir
+from .outputs import atomic_write_bytes, atomic_write_text, staged_output_dir
 from .plan import SurveyPlan
 
 GCP_FILES = ("gcp.geojson", "gcp.kml", "gcp.csv", "gcp.json", "gcp_map.png")
@@ -85,35 +86,115 @@ def gcp_kml(layout: GcpLayout, title: str) -> str:
     )
 
 
+def gcp_map_figure(plan: SurveyPlan, layout: GcpLayout) -> Any:
+    """The map of the layout as a matplotlib ``Figure`` (Agg canvas, no pyplot): the area and its
+    exclusions (both in the legend), the points with their names, axes labelled in the layout's
+    grid (metres), a north arrow (grid north; the caption gives true north) and a scale bar, the
+    view fitted to the area with a margin (the figure takes the area's proportions)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import FancyArrow, Patch
+
+    from .maplayout import AREA_EDGE, AREA_FACE, EXCLUSION_COLOUR, caption_text, scale_bar_length_m
+    from .mapplot import draw_scale_bar
+
+    x0, y0, x1, y1 = plan.area_xy.bounds
+    margin = 0.06 * max(x1 - x0, y1 - y0)
+    x0, y0, x1, y1 = x0 - margin, y0 - margin, x1 + margin, y1 + margin
+    aspect = (y1 - y0) / (x1 - x0)
+    map_w = 7.0
+    map_h = min(max(map_w * aspect, 3.0), 9.0)
+    if map_w * aspect > map_h:  # a tall area: narrower map
+        map_w = map_h / aspect
+    legend_w, top, bottom = 2.9, 0.6, 1.0
+    fig = Figure(figsize=(map_w + legend_w + 1.2, map_h + top + bottom), dpi=110)
+    FigureCanvasAgg(fig)
+    width_in, height_in = fig.get_size_inches()
+    ax = fig.add_axes((1.0 / width_in, bottom / height_in, map_w / width_in, map_h / height_in))
+    for poly in getattr(plan.area_xy, "geoms", [plan.area_xy]):
+        ax.fill(*poly.exterior.xy, color=AREA_FACE, zorder=0)
+        ax.plot(*poly.exterior.xy, color=AREA_EDGE, lw=1.2, zorder=1)
+        for hole in poly.interiors:
+            ax.fill(*hole.xy, color="white", zorder=0)
+            ax.plot(*hole.xy, color=AREA_EDGE, lw=1.0, zorder=1)
+    for zone in plan.exclusions_xy:
+        for part in getattr(zone, "geoms", [zone]):
+            ax.fill(*part.exterior.xy, facecolor=EXCLUSION_COLOUR, alpha=0.35, edgecolor=EXCLUSION_COLOUR,
+                    hatch="//", lw=1.0, zorder=1)  # fmt: skip
+    handles: list[Any] = [
+        Patch(facecolor=AREA_FACE, edgecolor=AREA_EDGE, label="area to cover"),
+    ]
+    if plan.exclusions_xy:
+        handles.append(
+            Patch(
+                facecolor=EXCLUSION_COLOUR,
+                alpha=0.35,
+                edgecolor=EXCLUSION_COLOUR,
+                hatch="//",
+                label=f"exclusion zones ({len(plan.exclusions_xy)})",
+            )
+        )
+    for role, marker, colour, what in (
+        ("gcp", "^", "#c00000", "ground control points"),
+        ("check", "o", "#0070c0", "check points"),
+    ):
+        pts = [p for p in layout.points if p.role == role]
+        if not pts:
+            continue
+        ax.scatter([p.x_m for p in pts], [p.y_m for p in pts], marker=marker, s=70, c=colour,
+                   edgecolors="k", zorder=3)  # fmt: skip
+        handles.append(Line2D([], [], ls="none", marker=marker, markersize=8, markerfacecolor=colour,
+                              markeredgecolor="k", label=f"{what} ({len(pts)})"))  # fmt: skip
+        for p in pts:
+            ax.annotate(
+                p.name, (p.x_m, p.y_m), xytext=(5, 5), textcoords="offset points", fontsize=8, zorder=4
+            )
+    ax.set_xlim(x0, x1)
+    ax.set_ylim(y0, y1)
+    ax.set_aspect("equal", adjustable="box")
+    ax.set_xlabel(f"easting, m ({layout.crs})", fontsize=9)
+    ax.set_ylabel(f"northing, m ({layout.crs})", fontsize=9)
+    ax.tick_params(labelsize=7)
+    ax.ticklabel_format(useOffset=False, style="plain")
+    for label in ax.get_yticklabels():
+        label.set_rotation(90)
+        label.set_verticalalignment("center")
+    ax.grid(color="#bdbdbd", lw=0.4, alpha=0.6)
+    # north arrow (grid north) beside the map, under the legend; scale bar in the map's corner
+    arrow_x = (map_w + 1.6) / width_in
+    arrow_top = bottom / height_in + 0.45 * map_h / height_in
+    fig.patches.append(
+        FancyArrow(
+            arrow_x,
+            arrow_top - 0.8 / height_in,
+            0,
+            0.7 / height_in,
+            width=0.002,
+            head_width=0.12 / width_in,
+            head_length=0.18 / height_in,
+            length_includes_head=True,
+            transform=fig.transFigure,
+            color="black",
+            figure=fig,
+        )
+    )
+    fig.text(arrow_x, arrow_top - 1.0 / height_in, "N", ha="center", va="center", fontsize=11, weight="bold")
+    draw_scale_bar(ax, scale_bar_length_m(x1 - x0), (x0, x1, y0, y1))
+    anchor = ((map_w + 1.3) / width_in, 1 - top / height_in)
+    fig.legend(handles=handles, loc="upper left", bbox_to_anchor=anchor, fontsize=8, frameon=False)
+    fig.text(1.0 / width_in, 1 - 0.35 / height_in, f"{plan.name}: ground control", fontsize=12, weight="bold")
+    caption = caption_text(plan).replace("metres from home", "metres")
+    fig.text(1.0 / width_in, 0.15 / height_in, caption, fontsize=7, color="#424242")
+    return fig
+
+
 def render_gcp_map(plan: SurveyPlan, layout: GcpLayout, path: str) -> None:
-    """The area, its exclusions, the planned frame count as shading, and the points."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(8, 8), dpi=100)
-    try:
-        for poly in getattr(plan.area_xy, "geoms", [plan.area_xy]):
-            ax.fill(*poly.exterior.xy, color="#e8f0e0", zorder=0)
-            ax.plot(*poly.exterior.xy, color="#3a6b35", lw=1.2)
-        for zone in plan.exclusions_xy:
-            ax.fill(*zone.exterior.xy, color="#d9534f", alpha=0.4)
-        for role, marker, colour in (("gcp", "^", "#c00000"), ("check", "o", "#0070c0")):
-            pts = [p for p in layout.points if p.role == role]
-            if pts:
-                ax.scatter([p.x_m for p in pts], [p.y_m for p in pts], marker=marker, s=70, c=colour,
-                           edgecolors="k", zorder=3, label=f"{role} ({len(pts)})")  # fmt: skip
-                for p in pts:
-                    ax.annotate(p.name, (p.x_m, p.y_m), xytext=(4, 4), textcoords="offset points", fontsize=7)
-        ax.set_aspect("equal")
-        ax.set_title(f"{plan.name}: ground control ({layout.crs}, metres)", fontsize=9)
-        ax.legend(loc="best", fontsize=8)
-        ax.tick_params(labelsize=7)
-        ax.ticklabel_format(useOffset=False, style="plain")
-        fig.savefig(path, format="png")
-    finally:
-        plt.close(fig)
+    """gcp_map.png of the layout (:func:`gcp_map_figure`)."""
+    fig = gcp_map_figure(plan, layout)
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png")
+    atomic_write_bytes(Path(path), buffer.getvalue())
 
 
 def write_gcp_outputs(

@@ -216,3 +216,102 @@ def pass_legend_counts(plan: SurveyPlan) -> dict[PassKind, tuple[int, int]]:
         rows, segments = counts.get(p.kind, (0, 0))
         counts[p.kind] = (rows + pass_line_count(p), segments + len(p.lines))
     return counts
+
+
+#: Colours told apart on the map: a nadir pass at another height (multi-scale) and each oblique
+#: look direction get their own, in the family of their kind.
+NADIR_HEIGHT_COLOURS = ("#1565c0", "#00897b", "#283593", "#0097a7")
+OBLIQUE_LOOK_COLOURS = ("#ef6c00", "#c62828", "#f9a825", "#6d4c41", "#ad1457", "#ff8a65")
+#: Dots or outlines closer than this on the page (points) merge into a mat: not drawn.
+MIN_VISIBLE_SPACING_PT = 3.0
+#: Station dots per square inch of the area on the page beyond which they are not drawn: passes
+#: crossing each other (crosshatch, obliques) turn more into a mat even when each line's are apart.
+MAX_STATIONS_PER_IN2 = 80.0
+#: Footprint outlines drawn at most before they are left out (a mat whatever the thinning).
+MAX_VISIBLE_FOOTPRINTS = 1500
+
+
+@dataclass(frozen=True)
+class PassStyle:
+    """How one group of passes is drawn: its colour and its legend label (lines counted as the
+    header counts them)."""
+
+    colour: str
+    label: str
+    pass_indices: tuple[int, ...]
+
+
+def pass_styles(plan: SurveyPlan) -> list[PassStyle]:
+    """One style per kind of pass, height and look direction, in the order the passes come:
+    nadir passes at different heights (a multi-scale block) and oblique passes looking different
+    ways are told apart by colour; one height and one look per kind keep the kind's colour."""
+    groups: dict[tuple[PassKind, float, float | None], list[FlightPass]] = {}
+    for p in plan.passes:
+        if p.lines:
+            look = None if p.look_heading_deg is None else round(p.look_heading_deg % 360.0, 1)
+            groups.setdefault((p.kind, round(p.alt_agl_m, 1), look), []).append(p)
+    heights = sorted({alt for (kind, alt, _) in groups if kind is not PassKind.OBLIQUE}, reverse=False)
+    looks = sorted({look for (kind, _, look) in groups if kind is PassKind.OBLIQUE and look is not None})
+    several_heights = len({alt for (_, alt, _) in groups}) > 1
+    styles = []
+    for (kind, alt, look), passes in groups.items():
+        rows = sum(pass_line_count(p) for p in passes)
+        segments = sum(len(p.lines) for p in passes)
+        where = f" at {alt:g} m" if several_heights else ""
+        if kind is PassKind.OBLIQUE and look is not None:
+            colour = OBLIQUE_LOOK_COLOURS[looks.index(look) % len(OBLIQUE_LOOK_COLOURS)]
+            what = f"oblique {passes[0].tilt_deg:g} deg\nlooking {look:g} deg{where}"
+        elif kind is PassKind.NADIR:
+            colour = NADIR_HEIGHT_COLOURS[heights.index(alt) % len(NADIR_HEIGHT_COLOURS)]
+            what = f"nadir{where}"
+        else:
+            colour = PASS_COLOURS[kind]
+            what = f"{kind.value}{where}"
+        styles.append(
+            PassStyle(
+                colour, f"camera on, {what} ({lines_text(rows, segments)})", tuple(p.index for p in passes)
+            )
+        )
+    return styles
+
+
+def dots_visible(spacing_m: float, points_per_m: float) -> bool:
+    """Whether marks ``spacing_m`` apart are told apart on a page of ``points_per_m``."""
+    return spacing_m * points_per_m >= MIN_VISIBLE_SPACING_PT
+
+
+@dataclass(frozen=True)
+class Simplification:
+    """What the map draws at its scale: footprints and stations only when they can be told
+    apart, and the sentences the legend says of what it left out."""
+
+    footprints: bool
+    stations: bool
+    notes: tuple[str, ...]
+
+
+def simplification(plan: SurveyPlan, frame: MapFrame, footprint_step: int = 1) -> Simplification:
+    """Footprints are drawn when there are at most MAX_VISIBLE_FOOTPRINTS and those drawn (every
+    ``footprint_step``-th) are visibly apart along the lines; stations when consecutive ones are
+    (every one: thinning would hide the crowding) and there are at most MAX_STATIONS_PER_IN2 per
+    square inch of the area on the page (crossing passes)."""
+    st = plan.stations
+    n = len(st)
+    if n == 0:
+        return Simplification(True, True, ())
+    ppm = frame.points_per_m
+    triggers = [p.trigger_distance_m for p in plan.passes if p.lines]
+    trigger_m = float(np.median(triggers)) if triggers else 0.0
+    footprints = n <= MAX_VISIBLE_FOOTPRINTS and dots_visible(trigger_m * max(footprint_step, 1), ppm)
+    steps = np.hypot(np.diff(st.x_m), np.diff(st.y_m)) if n > 1 else np.zeros(0)
+    spacing_m = float(np.median(steps[steps > 0])) if np.any(steps > 0) else math.inf
+    area_in2 = max(plan.area_xy.area * (ppm / 72.0) ** 2, 1e-9)
+    crowded = n > MAX_STATIONS_PER_IN2 * area_in2
+    stations = dots_visible(spacing_m, ppm) and not crowded
+    notes = []
+    if not footprints:
+        notes.append(f"frame footprints not drawn: {n:,} would\nhide the map (footprints.geojson)")
+    if not stations:
+        why = f"{n / area_in2:.0f} per square inch" if crowded else f"{spacing_m * ppm:.1f} pt apart"
+        notes.append(f"exposure stations not drawn: {n:,},\n{why} at this scale (stations.geojson)")
+    return Simplification(footprints, stations, tuple(notes))

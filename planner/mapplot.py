@@ -20,6 +20,7 @@ import io
 import logging
 import math
 import os
+from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, cast
 
@@ -356,6 +357,7 @@ def map_png_bytes(
     max_footprints: int = 4000,
     max_stations: int = DEFAULT_MAX_STATIONS,
     dpi: int = 130,
+    sorties: Sequence[SurveyPlan] = (),
 ) -> bytes:
     """The map of ``plan`` as PNG bytes (see :func:`render_map_png`)."""
     from PIL import Image
@@ -368,7 +370,7 @@ def map_png_bytes(
         )
     # Drawn with Pillow (planner/maprender.py): matplotlib's import alone costs more than a
     # small plan's planning and every other output together.
-    rgb = draw_map(plan, max_footprints=max_footprints, max_stations=max_stations, dpi=dpi)
+    rgb = draw_map(plan, max_footprints=max_footprints, max_stations=max_stations, dpi=dpi, sorties=sorties)
     # A map is a few flat colours and their anti-aliased edges: a 256-colour palette keeps
     # them (no dithering) and encodes 3-4x faster and 4x smaller than 24-bit colour.
     image = rgb.quantize(colors=256, method=Image.Quantize.FASTOCTREE, dither=Image.Dither.NONE)
@@ -384,14 +386,18 @@ def render_map_png(
     max_footprints: int = 4000,
     max_stations: int = DEFAULT_MAX_STATIONS,
     dpi: int = 130,
+    sorties: Sequence[SurveyPlan] = (),
 ) -> Path:
     """Render map.png of ``plan`` and write it atomically; returns the path written.
 
     ``max_footprints`` / ``max_stations``: frame footprints and station dots drawn at most,
     every k-th beyond (the legend says which and how many). ``dpi``: pixels
-    per inch of the PNG (the figure is about 12 inches wide).
+    per inch of the PNG (the figure is about 12 inches wide). ``sorties``: the plan's sorties (their
+    own plans, numbered from 1), drawn as outlines with their numbers.
     """
-    data = map_png_bytes(plan, max_footprints=max_footprints, max_stations=max_stations, dpi=dpi)
+    data = map_png_bytes(
+        plan, max_footprints=max_footprints, max_stations=max_stations, dpi=dpi, sorties=sorties
+    )
     written = atomic_write_bytes(path, data)
     log.debug("wrote map: %s (%d bytes)", written, len(data))
     return written

@@ -1,5 +1,8 @@
-"""map.png drawn with Pillow: the same map as :func:`planner.mapplot.render_map_figure`, at a
-fraction of the cost.
+"""map.png drawn with Pillow: the map of :func:`planner.mapplot.render_map_figure`, at a fraction
+of the cost, read at its scale (issue 24): footprints and stations only when they can be told
+apart (:func:`planner.maplayout.simplification`; else the legend says what was left out and which
+file has it), one colour per pass group (:func:`planner.maplayout.pass_styles`), and a plan's
+sorties as outlines with their numbers. The matplotlib figure keeps the simpler drawing.
 
 matplotlib costs about 0.3 s to import and 0.2-0.3 s to draw and encode this map, more than
 planning and writing every other output of a small plan together; Pillow imports in about
@@ -14,6 +17,7 @@ from __future__ import annotations
 
 import importlib.util
 import math
+import textwrap
 from collections.abc import Sequence
 from functools import lru_cache
 from pathlib import Path
@@ -31,10 +35,10 @@ from .maplayout import (
     caption_text,
     header_text,
     map_frame,
-    pass_legend_counts,
+    pass_styles,
     scale_bar_length_m,
+    simplification,
 )
-from .maplayout import lines_text as _lines_text
 from .maplayout import shown_text as _shown
 from .maplayout import thin as _thin
 from .plan import PassKind, SurveyPlan
@@ -250,6 +254,8 @@ def _legend(page: _Page, entries: Sequence[tuple[str, dict[str, Any]]]) -> None:
     line_h = page.pt(size_pt * 1.2)
     handle_w = page.pt(20)
     for label, style in entries:
+        # wrapped to the legend's width (3.4 in of page: about 44 characters at 8 pt)
+        label = "\n".join(textwrap.fill(line, 44, subsequent_indent="  ") for line in label.split("\n"))
         centre_y = y + line_h / 2
         kind = style["kind"]
         if kind == "patch":
@@ -274,6 +280,8 @@ def _legend(page: _Page, entries: Sequence[tuple[str, dict[str, Any]]]) -> None:
                     page.draw.line(dash, fill=style["colour"], width=width)
             else:
                 page.draw.line([(x, centre_y), (x + handle_w, centre_y)], fill=style["colour"], width=width)
+        elif kind == "note":  # a sentence on what the map leaves out, no handle
+            pass
         else:
             page.marker(
                 x + handle_w / 2,
@@ -288,17 +296,63 @@ def _legend(page: _Page, entries: Sequence[tuple[str, dict[str, Any]]]) -> None:
         y += line_h * (label.count("\n") + 1) + page.pt(5)
 
 
-def draw_map(plan: SurveyPlan, *, max_footprints: int, max_stations: int, dpi: int) -> Image.Image:
-    """The map of ``plan`` as an RGB image, ``dpi`` pixels per inch."""
+_SORTIE_EDGE = "#37474f"
+
+
+def _draw_sorties(
+    page: _Page, sorties: Sequence[SurveyPlan], ox: float, oy: float, colour_of_pass: dict[int, str]
+) -> None:
+    """Each sortie as the outline of its stations (their convex hull: a strip of its lines) in the
+    colour of the pass it flies, and its number in a disc where it starts (its first station), so
+    that the strips of one pass read side by side and the numbers of different passes apart."""
+    from shapely import MultiPoint
+
+    width = max(1, round(page.pt(1.0)))
+    layer = ImageDraw.Draw(page.image, "RGBA")
+    labels: list[tuple[float, float, int, str]] = []
+    for number, sortie in enumerate(sorties, start=1):
+        st = sortie.stations
+        if len(st) == 0:
+            continue
+        colour = colour_of_pass.get(int(st.pass_index[0]), _SORTIE_EDGE)
+        hull = MultiPoint(np.column_stack([st.x_m - ox, st.y_m - oy])).convex_hull
+        if hull.geom_type == "Polygon":
+            ring = np.asarray(hull.exterior.coords)
+            px, py = page.xy(ring[:, 0], ring[:, 1])
+            layer.line(list(zip(px.tolist(), py.tolist(), strict=True)), fill=_rgb(colour, 0.9), width=width)
+        cx, cy = (float(v) for v in page.xy(float(st.x_m[0]) - ox, float(st.y_m[0]) - oy))
+        labels.append((cx, cy, number, colour))
+    r = page.pt(6.5)
+    for cx, cy, number, colour in labels:  # over every outline
+        page.draw.ellipse((cx - r, cy - r, cx + r, cy + r), fill="white", outline=colour, width=width + 1)
+        page.text((cx, cy), str(number), 7.5, anchor="mm", bold=True, fill="#212121")
+
+
+def draw_map(
+    plan: SurveyPlan,
+    *,
+    max_footprints: int,
+    max_stations: int,
+    dpi: int,
+    sorties: Sequence[SurveyPlan] = (),
+) -> Image.Image:
+    """The map of ``plan`` as an RGB image, ``dpi`` pixels per inch.
+
+    Drawn for the scale of the page: footprints and stations only when they can be told apart
+    (else left out, and the legend says so and where they are), each pass group in its colour
+    (heights of a multi-scale block and oblique look directions apart), and ``sorties`` (the
+    plan's sorties, numbered from 1) as outlines with their numbers."""
     page = _Page(plan, dpi)
     frame = page.frame
     ox, oy = plan.home_xy_m
     st = plan.stations
     n = len(st)
-    kind_of_pass = {p.index: p.kind for p in plan.passes}
     x0, x1, y0, y1 = frame.limits
     box = (page.left, page.top, page.left + page.map_w, page.top + page.map_h)
     entries: list[tuple[str, dict[str, Any]]] = []
+    simplified: list[str] = []  # what the scale leaves out, said under the legend
+    styles = pass_styles(plan)
+    colour_of_pass = {i: style.colour for style in styles for i in style.pass_indices}
 
     # grid under everything
     xticks = _nice_ticks(x0, x1)
@@ -328,7 +382,9 @@ def draw_map(plan: SurveyPlan, *, max_footprints: int, max_stations: int, dpi: i
         )
 
     fp_index, fp_step = _thin(n, max_footprints)
-    if fp_index.size:
+    simple = simplification(plan, frame, fp_step)
+    footprints_seen = simple.footprints
+    if fp_index.size and footprints_seen:
         layer_draw = ImageDraw.Draw(page.image, "RGBA")  # blends each outline into the page
         width = max(1, round(page.pt(0.35)))
         corners = st.footprint_xy_m[fp_index] - (ox, oy)
@@ -337,7 +393,7 @@ def draw_map(plan: SurveyPlan, *, max_footprints: int, max_stations: int, dpi: i
         for p, xs, ys in zip(st.pass_index[fp_index].tolist(), px.tolist(), py.tolist(), strict=True):
             colour = colours.get(p)
             if colour is None:
-                colour = colours[p] = _rgb(_PASS_COLOURS[kind_of_pass.get(p, PassKind.NADIR)], 0.35)
+                colour = colours[p] = _rgb(colour_of_pass.get(p, _PASS_COLOURS[PassKind.NADIR]), 0.35)
             ring = list(zip(xs, ys, strict=True))
             layer_draw.line([*ring, ring[0]], fill=colour, width=width)
         entries.append(
@@ -355,9 +411,9 @@ def draw_map(plan: SurveyPlan, *, max_footprints: int, max_stations: int, dpi: i
         entries.append(("flight path", {"kind": "line", "colour": "#424242", "lw": 0.8, "dashed": True}))
 
     order = {PassKind.OBLIQUE: 0, PassKind.CROSSHATCH: 1, PassKind.NADIR: 2}
-    for p in sorted((p for p in plan.passes if p.lines), key=lambda p: order[p.kind]):
+    for p in sorted((p for p in plan.passes if p.lines), key=lambda p: (order[p.kind], -p.alt_agl_m)):
         width_px = page.pt(float(np.clip(0.35 * p.line_spacing_m * frame.points_per_m, 0.25, 1.6)))
-        pass_colour = _PASS_COLOURS[p.kind]
+        pass_colour = colour_of_pass[p.index]
         r = width_px / 2
         for ln in p.lines:
             (sx, ex), (sy, ey) = page.xy(
@@ -366,18 +422,14 @@ def draw_map(plan: SurveyPlan, *, max_footprints: int, max_stations: int, dpi: i
             page.draw.line([(sx, sy), (ex, ey)], fill=pass_colour, width=max(1, round(width_px)))
             for cx, cy in ((sx, sy), (ex, ey)):  # round caps: a one-photo segment shows as a dot
                 page.draw.ellipse((cx - r, cy - r, cx + r, cy + r), fill=pass_colour)
-    for kind, (rows, count) in pass_legend_counts(plan).items():
-        entries.append(
-            (
-                f"camera on, {kind.value} ({_lines_text(rows, count)})",
-                {"kind": "line", "colour": _PASS_COLOURS[kind], "lw": 1.6},
-            )
-        )
+    for style in styles:
+        entries.append((style.label, {"kind": "line", "colour": style.colour, "lw": 1.6}))
 
     st_index, st_step = _thin(n, max_stations)
-    if st_index.size:
-        steps = np.hypot(np.diff(st.x_m[st_index]), np.diff(st.y_m[st_index]))
-        spacing_pt = median(steps) * frame.points_per_m if steps.size else 8.0
+    steps = np.hypot(np.diff(st.x_m), np.diff(st.y_m)) if n > 1 else np.zeros(0)
+    spacing_m = median(steps[steps > 0]) if np.any(steps > 0) else 8.0 / frame.points_per_m
+    if st_index.size and simple.stations:
+        spacing_pt = spacing_m * frame.points_per_m
         area_pt2 = float(np.clip(0.5 * min(spacing_pt, 8.0) ** 2, 0.3, 8.0))
         r = max(page.pt(math.sqrt(area_pt2)) / 2, 0.75)
         px, py = page.xy(st.x_m[st_index] - ox, st.y_m[st_index] - oy)
@@ -390,6 +442,17 @@ def draw_map(plan: SurveyPlan, *, max_footprints: int, max_stations: int, dpi: i
             (
                 _shown(int(st_index.size), n, st_step, "exposure stations"),
                 {"kind": "marker", "marker": "o", "ms": 3, "face": "#212121", "edge": "#212121"},
+            )
+        )
+    simplified.extend(simple.notes)
+
+    if sorties:
+        _draw_sorties(page, sorties, ox, oy, colour_of_pass)
+        entries.append(
+            (
+                f"sorties ({len(sorties)}): the strip each flies,\nin its pass's colour; its "
+                f"number\nwhere it starts",
+                {"kind": "patch", "face": None, "edge": _SORTIE_EDGE, "lw": 1.2},
             )
         )
 
@@ -480,5 +543,7 @@ def draw_map(plan: SurveyPlan, *, max_footprints: int, max_stations: int, dpi: i
     page.text(
         (page.left, page.height - page.pt(0.15 * 72)), caption_text(plan), 8, anchor="ld", fill="#424242"
     )
+    for note in simplified:
+        entries.append((note, {"kind": "note"}))
     _legend(page, entries)
     return page.image.reduce(_SUPERSAMPLE)

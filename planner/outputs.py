@@ -13,6 +13,7 @@ Nothing is overwritten unless the caller passes ``overwrite=True`` (the CLI's ``
 from __future__ import annotations
 
 import contextlib
+import errno
 import math
 import os
 import shutil
@@ -45,8 +46,16 @@ def atomic_file(target: Path, *, overwrite: bool, buffering: int = -1) -> Iterat
     renamed over ``target``; on any error the temporary file is removed and ``target`` untouched."""
     if not overwrite and target.exists():
         raise OutputExistsError(f"{target} exists; pass --overwrite to replace it")
-    target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+    blocker = _file_in_the_way(target)
+    if blocker is not None:
+        raise OutputExistsError(
+            f"output file {target}: {blocker} is a file, not a folder; choose another path"
+        )
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+    except OSError as error:  # name the file the user gave, not the hidden temporary one
+        raise cannot_write(target, error, "file") from error
     try:
         with os.fdopen(fd, "wb", buffering=buffering) as handle:
             yield handle
@@ -76,9 +85,54 @@ def atomic_write_text(
     return atomic_write_bytes(path, text.encode(encoding), overwrite=overwrite)
 
 
-def check_output_dir(target: str | os.PathLike[str], *, overwrite: bool) -> Path:
-    """Refuse early when ``target`` holds files and ``overwrite`` is False."""
+def _file_in_the_way(path: Path) -> Path | None:
+    """The first of ``path``'s folders (from the top) that exists as something other than a
+    folder (a file where the path needs a folder), or None."""
+    for ancestor in reversed(path.parents):
+        if ancestor.exists() and not ancestor.is_dir():
+            return ancestor
+    return None
+
+
+def cannot_write(
+    target: str | os.PathLike[str], error: OSError, what: str = "output folder", where: Path | None = None
+) -> OSError:
+    """``error`` (raised while writing ``target`` or its hidden staging) restated naming the path
+    the user gave, the folder that refused (``where``, default its parent) and the fix, for the
+    CLI's one line (an OSError: exit 1, the operation failed)."""
+    given = Path(target)
+    reason = error.strerror or str(error)
+    folder = given.parent if where is None else where
+    if error.errno in (errno.EACCES, errno.EPERM, errno.EROFS):
+        return OSError(
+            error.errno,
+            f"cannot write the {what} {given}: {folder} is not writable ({reason}); choose a place "
+            f"you can write to, or make {folder} writable",
+        )
+    return OSError(error.errno, f"cannot write the {what} {given}: {reason} (in {folder})")
+
+
+def check_writable(target: str | os.PathLike[str], what: str = "output folder") -> None:
+    """Refuse, before any work, a ``target`` that cannot be created: a file where its path needs a
+    folder (bad input), or a nearest existing folder this process cannot write into."""
     path = Path(target)
+    blocker = _file_in_the_way(path)
+    if blocker is not None:
+        raise OutputExistsError(f"{what} {path}: {blocker} is a file, not a folder; choose another path")
+    existing = path if path.is_dir() else next((p for p in path.parents if p.is_dir()), Path("."))
+    if not os.access(existing, os.W_OK | os.X_OK):
+        code = errno.EACCES
+        raise cannot_write(path, PermissionError(code, os.strerror(code)), what, where=existing) from None
+
+
+def check_output_dir(target: str | os.PathLike[str], *, overwrite: bool) -> Path:
+    """Refuse early when ``target`` holds files and ``overwrite`` is False, or cannot be a folder."""
+    path = Path(target)
+    blocker = _file_in_the_way(path)
+    if blocker is not None:
+        raise OutputExistsError(
+            f"output folder {path}: {blocker} is a file, not a folder; choose another output path (-o)"
+        )
     if path.exists() and not path.is_dir():
         raise OutputExistsError(f"{path} exists and is not a folder; choose another output path")
     if path.is_dir() and any(path.iterdir()) and not overwrite:
@@ -98,11 +152,15 @@ class StagedOutputDir:
     use :func:`staged_output_dir`."""
 
     def __init__(self, target: str | os.PathLike[str], *, overwrite: bool = False) -> None:
+        self.given = Path(target)
         self.final = check_output_dir(target, overwrite=overwrite).resolve()
-        self.final.parent.mkdir(parents=True, exist_ok=True)
-        self.path = Path(
-            tempfile.mkdtemp(prefix=f".{self.final.name}.", suffix=".staging", dir=self.final.parent)
-        )
+        try:
+            self.final.parent.mkdir(parents=True, exist_ok=True)
+            self.path = Path(
+                tempfile.mkdtemp(prefix=f".{self.final.name}.", suffix=".staging", dir=self.final.parent)
+            )
+        except OSError as error:  # name the folder the user gave, not the hidden staging folder
+            raise cannot_write(self.given, error) from error
         os.chmod(self.path, 0o777 & ~process_umask())
         self.ended = False
 
@@ -112,14 +170,18 @@ class StagedOutputDir:
             raise RuntimeError(f"{self.path} was already committed or discarded")
         self.ended = True
         final = self.final
-        if final.exists():
-            backup = Path(tempfile.mkdtemp(prefix=f".{final.name}.", suffix=".old", dir=final.parent))
-            os.rmdir(backup)
-            os.replace(final, backup)
-            os.replace(self.path, final)
-            shutil.rmtree(backup, ignore_errors=True)
-        else:
-            os.replace(self.path, final)
+        try:
+            if final.exists():
+                backup = Path(tempfile.mkdtemp(prefix=f".{final.name}.", suffix=".old", dir=final.parent))
+                os.rmdir(backup)
+                os.replace(final, backup)
+                os.replace(self.path, final)
+                shutil.rmtree(backup, ignore_errors=True)
+            else:
+                os.replace(self.path, final)
+        except OSError as error:
+            shutil.rmtree(self.path, ignore_errors=True)
+            raise cannot_write(self.given, error) from error
 
     def discard(self) -> None:
         """Remove the staging folder (no-op once committed or discarded)."""

@@ -269,6 +269,10 @@ def write_with_sorties(
         data = json.loads(summary_json(plan))
         data["sorties"] = sorties_summary(plan, sorties)
         atomic_write_text(staging / "summary.json", json.dumps(data, indent=2, allow_nan=False) + "\n")
+        if "map.png" in names:  # the whole plan's map again, with the sorties drawn on it
+            from .mapplot import render_map_png
+
+            render_map_png(plan, staging / "map.png", sorties=[s.plan for s in sorties])
         written += [final / n for n in names]
         for sortie in sorties:
             folder = sortie_folder(sortie.number)

@@ -161,10 +161,13 @@ _FIXED_WING_KEYS = {
 def load_spec(path: str | Path) -> MissionSpec:
     """Read and validate a mission spec."""
     file = Path(path)
+    if file.is_dir():
+        raise SpecError(f"mission spec {file} is a folder; give the spec's .toml file")
     if not file.is_file():
         raise SpecError(f"mission spec {file} does not exist")
     try:
-        data = tomllib.loads(file.read_text(encoding="utf-8"))
+        # utf-8-sig: a byte-order mark some editors (Notepad) put first is read as no character
+        data = tomllib.loads(file.read_text(encoding="utf-8-sig"))
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as error:
         raise SpecError(f"{file} is not valid TOML: {error}") from None
     return parse_spec(data, file)

@@ -32,7 +32,7 @@ from .coverage import ViewShares
 from .errors import AreaError, PlanningError, SpecError
 from .fixed_wing import fixed_wing_for
 from .footprint import near_far_gsd_cm
-from .geo import LocalFrame, geodesic_area_m2
+from .geo import LocalFrame, geodesic_area_m2, geodesic_distance_m
 from .mission import HomePosition
 from .mission_builder import BuiltMission, PassPlan, build_mission
 from .plan import FlightPass, PassKind, PlanLayout, SurveyPlan
@@ -125,9 +125,16 @@ def flying_height(spec: MissionSpec) -> tuple[float, float]:
         assert survey.gsd_cm is not None
         alt_agl_m = camera.height_for_gsd_m(survey.gsd_cm)
     if alt_agl_m > vehicle.max_alt_agl_m + 1e-9:
+        limit = f"the vehicle limit max_alt_agl_m = {vehicle.max_alt_agl_m:g} m"
+        if survey.altitude_agl_m is not None:
+            raise SpecError(
+                f"{spec.source}: altitude_agl_m = {survey.altitude_agl_m:g} is above {limit}; ask for "
+                f"altitude_agl_m = {vehicle.max_alt_agl_m:g} or lower (a GSD of "
+                f"{camera.gsd_cm(vehicle.max_alt_agl_m):.2f} cm there) or raise the limit"
+            )
         raise SpecError(
-            f"{spec.source}: that GSD needs a flying height of {alt_agl_m:.1f} m above ground, above the "
-            f"vehicle limit max_alt_agl_m = {vehicle.max_alt_agl_m:g} m; ask for a finer gsd_cm (at most "
+            f"{spec.source}: gsd_cm = {survey.gsd_cm:g} needs a flying height of {alt_agl_m:.1f} m above "
+            f"ground, above {limit}; ask for a finer gsd_cm (at most "
             f"{camera.gsd_cm(vehicle.max_alt_agl_m):.2f} cm at the limit) or raise the limit"
         )
     return alt_agl_m, camera.gsd_cm(alt_agl_m)
@@ -152,10 +159,7 @@ def home_position(
         hx, hy = frame.to_xy(home.lon_deg, home.lat_deg)
         home_xy = (float(hx), float(hy))
         if near.distance(shapely.Point(home_xy)) > MAX_HOME_DISTANCE_M:
-            raise SpecError(
-                f"{spec.source}: home {vehicle.home_lat_deg}, {vehicle.home_lon_deg} is more than "
-                f"{MAX_HOME_DISTANCE_M / 1000:g} km from the {what}; home is [lat, lon]: check the order"
-            )
+            raise SpecError(_far_home_message(spec, frame, near, what))
     else:
         home_xy = default_xy()
         lon, lat = frame.to_lonlat(*home_xy)
@@ -164,6 +168,30 @@ def home_position(
         if zone.contains(shapely.Point(home_xy)):
             raise SpecError(f"{spec.source}: home lies inside an exclusion zone; move it out")
     return home, home_xy
+
+
+def _far_home_message(spec: MissionSpec, frame: LocalFrame, near: shapely.Geometry, what: str) -> str:
+    """Home too far from the area. When the two meet with latitude and longitude swapped in one
+    of them (an area file written [lat, lon], or home written [lon, lat]: the geometry cannot
+    tell which), say so and show how each was read, so the one written the other way is found."""
+    vehicle = spec.vehicle
+    assert vehicle.home_lat_deg is not None and vehicle.home_lon_deg is not None
+    lat, lon = vehicle.home_lat_deg, vehicle.home_lon_deg
+    centre = near.centroid
+    c_lon, c_lat = (float(v) for v in frame.to_lonlat(centre.x, centre.y))
+    lead = (
+        f"{spec.source}: home {lat:g}, {lon:g} is more than {MAX_HOME_DISTANCE_M / 1000:g} km from the {what}"
+    )
+    read = (
+        f"the {what} file's positions must be [lon, lat] (its centre was read as lon {c_lon:.5f}, lat "
+        f"{c_lat:.5f}) and home = [lat, lon] in the spec"
+    )
+    if abs(c_lon) <= 90.0 and geodesic_distance_m(lat, lon, c_lon, c_lat) < MAX_HOME_DISTANCE_M:
+        return (
+            f"{lead}; they meet with latitude and longitude swapped in one of them: {read}; swap the "
+            f"one written the other way"
+        )
+    return f"{lead}: {read}; check both"
 
 
 def default_home_xy(area_xy: Polygon | MultiPolygon) -> tuple[float, float]:

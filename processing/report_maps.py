@@ -1,6 +1,10 @@
 """The check's four maps (PNG): views per cell, gaps, GSD and base-height ratio, in metres east
-and north of the area's south-west corner in the check's frame, equal aspect, with a scale bar;
-labels placed so that they do not overlap (:func:`place_labels`).
+and north of the area's south-west corner in the check's frame, equal aspect, with a scale bar,
+a north arrow (grid north of the frame) and a caption stating the origin (its latitude and
+longitude) and the grid; the title above the map and its colour bar, wrapped; labels placed so
+that they do not overlap (:func:`place_labels`). The GSD map's colour scale is anchored on the
+target (the plan's GSD, else the block's median) and the check's tolerance (10 % coarser warns):
+noise of a few hundredths of a centimetre stays one colour.
 
 matplotlib is used through ``Figure`` and the Agg canvas, never pyplot (no global state).
 """
@@ -10,6 +14,8 @@ from __future__ import annotations
 import io
 import itertools
 import logging
+import textwrap
+import warnings
 from collections.abc import Sequence
 from typing import Any
 
@@ -36,6 +42,9 @@ VIEW_COLOURS = ("#d32f2f", "#fb8c00", "#fdd835", "#c5e1a5", "#66bb6a", "#1b5e20"
 _GAP_COLOUR = "#d32f2f"
 _FIGSIZE_IN = (7.0, 6.0)
 _DPI = 110
+#: The check warns when the median GSD is more than this fraction coarser than planned
+#: (processing/check.py); the GSD map's colour scale spans the target -/+ this.
+GSD_TOLERANCE = 0.10
 
 
 # --- maps ----------------------------------------------------------------------------------------
@@ -57,17 +66,64 @@ class _Map:
         pad = 0.03 * max(x1 - x0, y1 - y0, 1.0)
         self.origin = (minx, miny)
         self.limits = (x0 - minx - pad, x1 - minx + pad, y0 - miny - pad, y1 - miny + pad)
-        self.figure = Figure(figsize=_FIGSIZE_IN, dpi=_DPI, layout="constrained")
+        aspect = (self.limits[3] - self.limits[2]) / max(self.limits[1] - self.limits[0], 1e-9)
+        height_in = min(max(1.9 + 4.6 * aspect, 3.8), 8.0)  # the map's proportions, little blank
+        self.figure = Figure(figsize=(_FIGSIZE_IN[0], height_in), dpi=_DPI, layout="constrained")
         FigureCanvasAgg(self.figure)
+        # Above the map and its colour bar (a figure title), wrapped: never under the colour bar.
+        self.figure.suptitle(textwrap.fill(title, 62), fontsize=11, x=0.02, ha="left")
         self.ax = self.figure.add_subplot()
-        self.ax.set_title(title, fontsize=12, loc="left")
         self.ax.set_aspect("equal")
         self.ax.set_xlim(self.limits[0], self.limits[1])
         self.ax.set_ylim(self.limits[2], self.limits[3])
-        self.ax.set_xlabel("metres east", fontsize=9)
-        self.ax.set_ylabel("metres north", fontsize=9)
+        self.ax.set_xlabel("metres east of the origin (grid)", fontsize=9)
+        self.ax.set_ylabel("metres north of the origin (grid)", fontsize=9)
+        # the caption as the figure's x label: the layout keeps room for it under the axes
+        self.figure.supxlabel(
+            textwrap.fill(self.caption(), 118), fontsize=6.5, color="#424242", x=0.01, ha="left"
+        )
         self.ax.tick_params(labelsize=8)
         self.ax.set_facecolor("#f5f5f5")
+
+    def caption(self) -> str:
+        """The origin (the area's south-west corner: its latitude and longitude) and the grid."""
+        frame = self.result.frame
+        lon, lat = (float(v) for v in frame.to_lonlat(*self.origin))
+        with warnings.catch_warnings():  # to_dict warns that a PROJ string may lose detail: not here
+            warnings.simplefilter("ignore", UserWarning)
+            params = frame.crs.to_dict()
+        if frame.epsg:
+            grid = f"grid EPSG:{frame.epsg} ({frame.crs.name}), metres. The arrow points to grid north"
+        elif params.get("proj") == "tmerc":
+            grid = (
+                f"grid: transverse Mercator centred at {float(params.get('lat_0', 0.0)):.5f}, "
+                f"{float(params.get('lon_0', 0.0)):.5f} (WGS84, scale 1), metres. The arrow points to grid "
+                f"north, true north on the central meridian"
+            )
+        else:
+            grid = f"grid {frame.crs.name}, metres. The arrow points to grid north"
+        return (
+            f"Origin (0, 0): the area's south-west corner, {abs(lat):.5f} deg {'N' if lat >= 0 else 'S'}, "
+            f"{abs(lon):.5f} deg {'E' if lon >= 0 else 'W'}; {grid}."
+        )
+
+    def north_arrow(self) -> None:
+        """An arrow to grid north in the map's upper right corner, labelled N."""
+        _, x1, y0, y1 = self.limits
+        unit = (y1 - y0) / 100.0
+        x = x1 - 4.5 * unit
+        self.ax.annotate(
+            "N",
+            xy=(x, y1 - 2.5 * unit),
+            xytext=(x, y1 - 13.0 * unit),
+            ha="center",
+            va="top",
+            fontsize=10,
+            weight="bold",
+            arrowprops={"arrowstyle": "-|>", "lw": 1.8, "color": "black"},
+            zorder=11,
+            gid="north-arrow",
+        )
 
     @property
     def raster_extent(self) -> tuple[float, float, float, float]:
@@ -104,8 +160,14 @@ class _Map:
         """The plan map's scale bar (planner.mapplot), so both read alike."""
         draw_scale_bar(self.ax, scale_bar_length_m(self.limits[1] - self.limits[0]), self.limits)
 
-    def png(self) -> bytes:
+    def finish(self) -> Figure:
+        """The scale bar and the north arrow drawn; the figure."""
         self.scale_bar()
+        self.north_arrow()
+        return self.figure
+
+    def png(self) -> bytes:
+        self.finish()
         buffer = io.BytesIO()
         self.figure.savefig(buffer, format="png", dpi=_DPI)
         return buffer.getvalue()
@@ -232,23 +294,51 @@ def place_labels(ax: Any, anchors: Sequence[tuple[float, float]], texts: Sequenc
     return placed
 
 
+def gsd_target_cm(result: CheckResult) -> tuple[float, str] | None:
+    """The GSD the map's colour scale is anchored on, and what it is: the plan's, else the
+    block's median; None without a GSD."""
+    if result.plan is not None:
+        return float(result.plan.planned.summary.gsd_cm), "planned"
+    finite = result.gsd_cm[np.isfinite(result.gsd_cm)] if result.gsd_cm.size else result.gsd_cm
+    if finite.size == 0:
+        return None
+    return float(np.median(finite)), "median"
+
+
 def gsd_png(result: CheckResult) -> bytes:
-    """Finest GSD seeing each cell (cm)."""
+    """Finest GSD seeing each cell (cm): :func:`gsd_map` as PNG."""
+    return gsd_map(result).png()
+
+
+def gsd_map(result: CheckResult) -> _Map:
+    """Finest GSD seeing each cell (cm), on a diverging scale centred on the target GSD and
+    spanning the tolerance (white at the target, blue finer, red coarser, beyond it the ends)."""
     m = _Map(result, "Ground sample distance (finest view), cm")
-    if result.gsd_cm_raster is not None and np.isfinite(result.gsd_cm_raster).any():
+    target = gsd_target_cm(result)
+    if result.gsd_cm_raster is not None and np.isfinite(result.gsd_cm_raster).any() and target is not None:
+        gsd, what = target
+        low, high = gsd * (1 - GSD_TOLERANCE), gsd * (1 + GSD_TOLERANCE)
         image = _draw_raster(
-            m, result.gsd_cm_raster, np.zeros(result.in_area.shape, dtype=bool), cmap="viridis"
-        )
-        bar = m.figure.colorbar(image, ax=m.ax, shrink=0.8)
+            m, result.gsd_cm_raster, np.zeros(result.in_area.shape, dtype=bool), cmap="RdBu_r", vmin=low,
+            vmax=high,
+        )  # fmt: skip
+        bar = m.figure.colorbar(image, ax=m.ax, shrink=0.9, extend="both", ticks=[low, gsd, high])
+        pct = round(GSD_TOLERANCE * 100)
+        bar.ax.set_yticklabels([f"{low:.2f} (-{pct} %)", f"{gsd:.2f} {what}", f"{high:.2f} (+{pct} %)"])
         bar.set_label("GSD, cm per pixel", fontsize=9)
     else:
         m.ax.text(0.5, 0.5, "no GSD raster", transform=m.ax.transAxes, ha="center")
     m.area_outline()
     m.centres()
-    return m.png()
+    return m
 
 
 def base_height_png(result: CheckResult) -> bytes:
+    """:func:`base_height_map` as PNG."""
+    return base_height_map(result).png()
+
+
+def base_height_map(result: CheckResult) -> _Map:
     """The best pair seeing each cell, in three classes of base-height ratio (weak, good,
     wide); the pairs are those the stereo share counts (``result.stereo.good_pair_basis``: frames on
     one line or neighbouring lines when there are any)."""
@@ -277,4 +367,4 @@ def base_height_png(result: CheckResult) -> bytes:
         m.ax.text(0.5, 0.5, "no overlapping pair", transform=m.ax.transAxes, ha="center")
     m.area_outline()
     m.centres()
-    return m.png()
+    return m

@@ -13,6 +13,18 @@ import click
 
 from planner.outputs import json_safe
 
+
+class FiniteFloatRange(click.FloatRange):
+    """click's FloatRange refusing NaN and infinities too (FloatRange lets NaN through: every
+    comparison with NaN is false), so a timeout of nan never means waiting forever."""
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        number = click.FLOAT.convert(value, param, ctx)
+        if number != number or number in (float("inf"), float("-inf")):
+            self.fail(f"{value} is not a finite number", param, ctx)
+        return super().convert(number, param, ctx)
+
+
 F = TypeVar("F", bound=Callable[..., Any])
 
 json_option = click.option(
@@ -57,7 +69,7 @@ def connect_options(function: F) -> F:
         ),
         click.option(
             "--heartbeat-timeout-s",
-            type=click.FloatRange(min=0.1),
+            type=FiniteFloatRange(min=0.1),
             default=10.0,
             show_default=True,
             help="Seconds to wait for the vehicle's heartbeat when connecting.",

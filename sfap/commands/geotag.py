@@ -26,10 +26,32 @@ if TYPE_CHECKING:
     from acquisition.geotag_results import GeotagResult
 
 
+#: The largest camera clock offset taken: about 50 years (a clock never set reads 2000-01-01).
+MAX_OFFSET_S = 50 * 365.25 * 86400.0
+
+
 def _finite(ctx: click.Context, param: click.Parameter, value: float | None) -> float | None:
     if value is not None and not math.isfinite(value):
         raise click.BadParameter(f"{value} is not a finite number of seconds")
+    if value is not None and abs(value) > MAX_OFFSET_S:
+        raise click.BadParameter(
+            f"{value:g} s is more than 50 years; give the camera clock minus UTC in seconds "
+            f"(e.g. 3600 for a camera an hour ahead)"
+        )
     return value
+
+
+def _seconds_within(most_s: float) -> Callable[[click.Context, click.Parameter, float | None], float | None]:
+    """A callback refusing a time that is not above 0 s and at most ``most_s`` (0 < t <= most)."""
+
+    def callback(ctx: click.Context, param: click.Parameter, value: float | None) -> float | None:
+        if value is not None and not (math.isfinite(value) and 0.0 < value <= most_s):
+            raise click.BadParameter(
+                f"{value:g} s: give a time above 0 s and at most {most_s:g} s (0 < s <= {most_s:g})"
+            )
+        return value
+
+    return callback
 
 
 def _sync_points(parse: Callable[[str], SyncPoint]) -> Callable[..., tuple[SyncPoint, ...]]:
@@ -136,6 +158,7 @@ def _card_ahead(
     "--tolerance-s",
     type=float,
     default=None,
+    callback=_seconds_within(60.0),
     help="Largest capture-time residual of a frame/event pair, seconds. Default: 35 percent of the "
     "event interval, then 10 x the residual scatter.",
 )
@@ -143,8 +166,18 @@ def _card_ahead(
     "--max-gap-s",
     type=float,
     default=5.0,
+    callback=_seconds_within(3600.0),
     show_default=True,
     help="Longest interval of the log's position track to interpolate over, seconds.",
+)
+@click.option(
+    "--camera-mount",
+    type=click.Choice(["gimbal", "fixed"]),
+    default="gimbal",
+    show_default=True,
+    help="How the camera is carried, for a log without gimbal angles: gimbal = stabilised, "
+    "looking straight down (as sfap's plans point it), heading the vehicle's; fixed = fixed to the "
+    "airframe, taking the vehicle's pitch and roll.",
 )
 @click.option("--dry-run", is_flag=True, help="Match and report; write nothing.")
 @click.option(
@@ -170,6 +203,7 @@ def command(
     sync_positions: tuple[SyncPoint, ...],
     tolerance_s: float | None,
     max_gap_s: float,
+    camera_mount: str,
     dry_run: bool,
     in_place: bool,
     backup_dir: Path | None,
@@ -219,11 +253,14 @@ def command(
             sync=sync,
         )
         with _card_ahead(not dry_run and not in_place, images, paths, out_dir, overwrite) as (staging, ahead):
+            from acquisition.attitude import CameraMount
             from acquisition.geotag import geotag_images
             from acquisition.geotag_results import GeotagOptions
             from acquisition.telemetry import read_log
 
-            options = GeotagOptions(tolerance_s=tolerance_s, max_gap_s=max_gap_s)
+            options = GeotagOptions(
+                tolerance_s=tolerance_s, max_gap_s=max_gap_s, camera_mount=CameraMount(camera_mount)
+            )
             with _log_progress(not no_progress and not as_json) as log_report:
                 flight_log = read_log(log_path, log_report)
             total = 2 * len(paths)

@@ -11,8 +11,9 @@ import click
 from acquisition.monitor import MonitorResult, StopReason, monitor
 from acquisition.monitor_state import MonitorState
 from acquisition.signing import load_signing_key
+from planner.outputs import check_output_dir, check_writable
 
-from ..common import connect_options, dumps_json, json_option, overwrite_option
+from ..common import FiniteFloatRange, connect_options, dumps_json, json_option, overwrite_option
 
 
 def status_line(state: MonitorState) -> str:
@@ -106,7 +107,7 @@ class _StatusPrinter:
 @overwrite_option
 @click.option(
     "--reconnect-timeout-s",
-    type=click.FloatRange(min=0.0),
+    type=FiniteFloatRange(min=0.0),
     default=60.0,
     show_default=True,
     help="After a link drop, keep trying to reconnect for this many seconds.",
@@ -141,6 +142,9 @@ def command(
 
     Example: sfap monitor --connect tcp://127.0.0.1:5760 --plan out/gully -o flight/
     """
+    # The recording folder, checked before connecting (a flight is not the time to find out).
+    check_output_dir(out_dir, overwrite=overwrite)
+    check_writable(out_dir, "recording folder")
     key = load_signing_key(signing_key_file)
     printer = _StatusPrinter()
     try:

@@ -18,13 +18,16 @@ from acquisition.simulator.server import (
 )
 from planner.errors import InputError
 from planner.mission import Autopilot, HomePosition, Mission, VehicleType
+from planner.outputs import check_writable
+
+from ..common import FiniteFloatRange
 
 F = TypeVar("F", bound=Callable[..., Any])
 
 
 def _percent_option(name: str, help_text: str) -> Callable[[F], F]:
     """A fault rate option: 0-100 %, default 0."""
-    percent = click.FloatRange(0.0, 100.0)
+    percent = FiniteFloatRange(0.0, 100.0)
     return click.option(name, type=percent, default=0.0, show_default=True, help=help_text)
 
 
@@ -53,7 +56,7 @@ def _percent_option(name: str, help_text: str) -> Callable[[F], F]:
 )
 @click.option(
     "--speedup",
-    type=click.FloatRange(min=0.01, max=1000.0),
+    type=FiniteFloatRange(min=0.01, max=1000.0),
     default=1.0,
     show_default=True,
     help="Simulated seconds per wall-clock second.",
@@ -63,7 +66,7 @@ def _percent_option(name: str, help_text: str) -> Callable[[F], F]:
 @_percent_option("--reorder-pct", "Messages swapped with the next one, percent (each way).")
 @click.option(
     "--latency-s",
-    type=click.FloatRange(0.0, 60.0),
+    type=FiniteFloatRange(0.0, 60.0),
     default=0.0,
     show_default=True,
     help="Delay added to every message, wall seconds (each way).",
@@ -123,7 +126,7 @@ def _percent_option(name: str, help_text: str) -> Callable[[F], F]:
 )
 @click.option(
     "--camera-offset-s",
-    type=click.FloatRange(-86400.0, 86400.0),
+    type=FiniteFloatRange(-86400.0, 86400.0),
     default=0.0,
     show_default=True,
     help="How far the camera's clock is ahead of UTC (seconds; negative: behind); with --frames.",
@@ -165,7 +168,7 @@ def _percent_option(name: str, help_text: str) -> Callable[[F], F]:
 )
 @click.option(
     "--duration-s",
-    type=click.FloatRange(min=0.0),
+    type=FiniteFloatRange(min=0.0),
     default=None,
     help="Stop after this many wall seconds (default: run until Ctrl-C).",
 )
@@ -202,6 +205,11 @@ def command(
     """
     from planner.formats import read_mission
 
+    # What the simulator will write, checked before it starts (it writes as it flies).
+    if frames_dir is not None:
+        check_writable(frames_dir, "frames folder")
+    if tlog_path is not None:
+        check_writable(tlog_path, "tlog")
     mission: Mission | None = None
     if mission_path is not None:
         mission = read_mission(mission_path)

@@ -31,6 +31,7 @@ from shared_data import SHARED_DATA
 
 from acquisition import attitude, exif, geotag, interpolation, matching, sidecars
 from acquisition import card as card_frames
+from acquisition.attitude import CameraMount
 from acquisition.errors import GeotagError
 from acquisition.geotag_results import FrameStatus, GeotagOptions, OffsetSource
 from acquisition.telemetry.model import AttitudeTrack, CameraEvents, FlightLog, PositionTrack
@@ -486,6 +487,57 @@ def survey_images(tmp_path: Path, flight: Flight) -> tuple[Path, list[int | None
     return tmp_path / "card", truth
 
 
+@pytest.mark.parametrize("from_events", [False, True], ids=["track", "event"])
+def test_a_gimbal_camera_is_not_given_the_vehicles_pitch(
+    tmp_path: Path, flight: Flight, survey_images: tuple[Path, list[int | None]], from_events: bool
+) -> None:
+    """Issue 24: a log with the vehicle's attitude (pitched 3 deg, rolled in the turns) and no
+    gimbal angles. A camera on a stabilised gimbal (the default, as sfap's plans point it) looks
+    straight down: pitch and roll 0 in the Pix4D convention, the vehicle's heading as yaw, and the
+    result says which attitude it used. With --camera-mount fixed the camera takes the vehicle's
+    attitude. The same from the track and from an event's own attitude (DataFlash CAM R, P, Y)."""
+    from acquisition.geotag_results import PositionSource
+
+    card, truth = survey_images
+    log = flight.log
+    attitudes, events = log.attitudes, log.events
+    assert attitudes is not None and events is not None and log.gimbal is None
+    options: dict[str, object] = {}
+    if from_events:  # the event carries the vehicle's attitude at the trigger
+        yaw = np.interp(events.time_utc_s, attitudes.time_utc_s, np.unwrap(attitudes.yaw_deg, period=360.0))
+        events = replace(
+            events,
+            roll_deg=np.interp(events.time_utc_s, attitudes.time_utc_s, attitudes.roll_deg),
+            pitch_deg=np.full(len(events), 3.0),
+            yaw_deg=np.mod(yaw, 360.0),
+        )
+        log = replace(log, events=events)
+        options["position_source"] = PositionSource.EVENT
+    heading = np.unwrap(attitudes.yaw_deg, period=360.0)
+    for mount in CameraMount:
+        result = geotag.geotag_images(
+            card, log, tmp_path / str(mount), dry_run=True,
+            options=GeotagOptions(camera_mount=mount, **options),  # type: ignore[arg-type]
+        )  # fmt: skip
+        said = [w for w in result.warnings if w.startswith("attitude:")]
+        assert len(said) == 1 and "no gimbal angles" in said[0], result.warnings
+        matched = [f for f in result.frames if f.status is FrameStatus.MATCHED]
+        assert len(matched) == len(truth) - 1
+        for f in matched:
+            assert f.yaw_deg is not None and f.pitch_deg is not None and f.roll_deg is not None
+            assert f.time_utc_s is not None
+            vehicle_yaw = float(np.interp(f.time_utc_s, attitudes.time_utc_s, heading))
+            assert abs((f.yaw_deg - vehicle_yaw + 180.0) % 360.0 - 180.0) < 0.5, f
+            if mount is CameraMount.GIMBAL:
+                assert "stabilised gimbal" in said[0] and "--camera-mount fixed" in said[0]
+                assert abs(f.pitch_deg) < 1e-9 and abs(f.roll_deg) < 1e-9, f
+            else:
+                assert "the vehicle's" in said[0]
+                vehicle_roll = float(np.interp(f.time_utc_s, attitudes.time_utc_s, attitudes.roll_deg))
+                assert f.pitch_deg == pytest.approx(3.0, abs=0.05)
+                assert f.roll_deg == pytest.approx(vehicle_roll, abs=0.1)
+
+
 def test_geotag_synthetic_survey(
     tmp_path: Path, flight: Flight, survey_images: tuple[Path, list[int | None]]
 ) -> None:
@@ -779,7 +831,12 @@ def test_garfield_tags_recreated(tmp_path: Path, garfield: tuple[Path, list[exif
     assert all(exif.read_tags(p).gps_lat_deg is None for p in card.iterdir())
     log = _garfield_track(originals, gps_time=False)
     result = geotag.geotag_images(
-        card, log, tmp_path / "out", offset_s=0.0, options=GeotagOptions(max_gap_s=120.0)
+        card,
+        log,
+        tmp_path / "out",
+        offset_s=0.0,
+        # the Sequoia is fixed to the airframe: the track's attitude is the camera's
+        options=GeotagOptions(max_gap_s=120.0, camera_mount=CameraMount.FIXED),
     )
     assert not result.untagged and len(result.frames) == 28
     worst_m = worst_alt_m = worst_yaw_deg = 0.0
@@ -892,7 +949,9 @@ def test_real_autopilot_log(tmp_path: Path, sitl_log: FlightLog) -> None:
     kept = np.delete(times, dropped)
     spurious = float(events.time_utc_s[40] + 23.5 + 1.1)
     write_frames(tmp_path / "card", np.sort(np.append(kept, spurious)))
-    result = geotag.geotag_images(tmp_path / "card", sitl_log, tmp_path / "out")
+    # the plane's camera is fixed to the airframe (a servo-triggered camera, no gimbal)
+    fixed = GeotagOptions(camera_mount=CameraMount.FIXED)
+    result = geotag.geotag_images(tmp_path / "card", sitl_log, tmp_path / "out", options=fixed)
     assert [j for j, _ in result.unmatched_events] == dropped
     assert len(result.extra_frames) == 1
     assert result.offset_s == pytest.approx(23.5, abs=0.03)

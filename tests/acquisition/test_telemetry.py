@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from shared_data import SHARED_DATA
+from shared_data import SHARED_DATA, needs
 
 from acquisition.attitude import roll_pitch_yaw_deg_from_quaternion
 from acquisition.errors import TelemetryError
@@ -43,7 +43,7 @@ BIN = REAL / "flight.BIN"
 DATA = Path(__file__).resolve().parents[1] / "data"
 EARTH_M_PER_DEG = 111_195.0  # mean Earth radius 6371.0 km * pi / 180
 
-needs_real = pytest.mark.skipif(not TLOG.exists() or not BIN.exists(), reason="no SITL logs")
+needs_real = needs("ardupilot_sitl_plane", "flight.tlog")
 
 
 def _close(actual: Any, desired: Any, atol: float) -> None:

@@ -331,7 +331,7 @@ def test_folder_and_options_are_checked_before_the_log_is_read(tmp_path: Path) -
     code, _, stderr = _run("geotag", tmp_path / "DCIM", "--log", garbage, "-o", tmp_path / "out")
     assert code == 2 and "no JPEG images" in stderr and "flight.tlog" not in stderr
     write_frame(tmp_path / "DCIM" / "100CANON" / "A.JPG", 1.7e9)
-    for args, message in ((["--tolerance-s", "0"], "tolerance"), (["--max-gap-s", "-1"], "max gap")):
+    for args, message in ((["--tolerance-s", "0"], "--tolerance-s"), (["--max-gap-s", "-1"], "--max-gap-s")):
         code, _, stderr = _run("geotag", tmp_path / "DCIM", "--log", garbage, "-o", tmp_path / "out", *args)
         assert code == 2 and message in stderr and "flight.tlog" not in stderr, stderr
     (tmp_path / "out").mkdir()

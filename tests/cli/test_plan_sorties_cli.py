@@ -110,8 +110,8 @@ def test_gcp_plan_more_points_than_the_area_holds(tmp_path: Path) -> None:
     out = tmp_path / "gcp"
     args = ["gcp-plan", str(MULTISCALE), "-o", str(out), "--gcp", "400", "--min-separation-m", "40"]
     result = CliRunner().invoke(cli, args)
-    assert result.exit_code == 1
-    assert "ask for fewer points" in result.stderr and "Traceback" not in result.output
+    assert result.exit_code == 2  # an impossible request is bad input (issue 24)
+    assert "points or fewer" in result.stderr and "Traceback" not in result.output
     assert not out.exists()
 
 

@@ -122,3 +122,12 @@ def test_readme_tour_runs_as_written(tmp_path: Path) -> None:
     assert re.search(rf"tagged\s+{planned}\b", geotag), geotag
     check = outputs["check"][0].stdout
     assert check.startswith("PASS"), check
+    # Issue 24: the flight check and the plan check of the same nadir block agree on the doming
+    # risk (the log has no gimbal angles: the vehicle's pitch is not the gimbal camera's).
+    assert "stabilised gimbal" in outputs["geotag"][0].stdout + outputs["geotag"][0].stderr
+    convergent = [
+        re.search(r"convergent frames\s+(\d+) %( \(doming risk\))?", done.stdout) for done in outputs["check"]
+    ]
+    assert all(c is not None for c in convergent), [done.stdout for done in outputs["check"]]
+    flight, plan = (c.group(2) is not None for c in convergent if c is not None)
+    assert flight == plan, [c.group(0) for c in convergent if c is not None]

@@ -12,7 +12,7 @@ import exifread
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from shared_data import SHARED_DATA
+from shared_data import SHARED_DATA, needs
 
 from planner.camera import Camera, Orientation
 from planner.camera_db import (
@@ -197,7 +197,7 @@ def _ratio(tags: dict[str, Any], name: str) -> float:
     return float(tags[name].values[0])
 
 
-@pytest.mark.skipif(not SEQUOIA_DIR.is_dir(), reason="shared sample data not present")
+@needs("garfield_rgb")
 def test_sequoia_images_match_their_entry_through_their_exif() -> None:
     images = sorted(SEQUOIA_DIR.glob("*.JPG"))
     assert len(images) >= 20

@@ -6,6 +6,7 @@ holds is refused with the figures."""
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -15,8 +16,8 @@ from shapely.geometry import Point, Polygon
 from survey_oracles import make_spec
 from test_survey import star_polygon, to_lonlat_polygon
 
-from planner.errors import InputError, PlanningError
-from planner.gcp_layout import GcpOptions, plan_gcps
+from planner.errors import InputError
+from planner.gcp_layout import GcpOptions, plan_gcps, usable_ground
 from planner.plan import SurveyPlan
 from planner.survey import plan_polygons
 
@@ -98,14 +99,76 @@ def test_corners_and_interior_are_spread() -> None:
 
 
 def test_more_points_than_the_area_holds_is_refused() -> None:
+    """Issue 24: an impossible request is bad input (InputError: exit 2) naming the options and
+    one figure, the number that fits; asking for that many (split as it says) succeeds."""
     small = [(0.0, 0.0), (120.0, 0.0), (120.0, 100.0), (0.0, 100.0)]
     plan = plan_polygons(make_spec({"gsd_cm": 2.0}), [to_lonlat_polygon(small)], [])
-    with pytest.raises(PlanningError) as info:
+    with pytest.raises(InputError) as info:
         plan_gcps(plan, GcpOptions(gcp_count=20, check_count=5, min_frames=1, min_separation_m=30.0))
     text = str(info.value)
-    assert "of the 25 points asked for" in text and "ask for fewer points" in text
+    assert text.startswith("--gcp 20 --check 5 asks for 25 points 30 m apart"), text
+    found = re.search(
+        r"only (\d+) fit; ask for (\d+) points or fewer \(e\.g\. --gcp (\d+) --check (\d+)\)", text
+    )
+    assert found is not None, text
+    fits, again, gcp, check = (int(g) for g in found.groups())
+    assert fits == again == gcp + check and gcp >= 3
+    layout = plan_gcps(
+        plan, GcpOptions(gcp_count=gcp, check_count=check, min_frames=1, min_separation_m=30.0)
+    )
+    assert len(layout.points) == fits
+    assert "holds about" not in text  # no second, contradicting figure
     with pytest.raises(InputError, match="at least 3 GCPs"):
         GcpOptions(gcp_count=2)
+
+
+def test_a_margin_that_leaves_no_ground_names_the_option_and_the_margin_that_fits() -> None:
+    """A 120 m x 100 m rectangle: ground is left only with a margin below half its short side
+    (50 m, less the 1 % + 1 cm the buffers are padded by: 49.49 m)."""
+    rect = [(0.0, 0.0), (120.0, 0.0), (120.0, 100.0), (0.0, 100.0)]
+    plan = plan_polygons(make_spec({"gsd_cm": 2.0}), [to_lonlat_polygon(rect)], [])
+    with pytest.raises(InputError) as info:
+        plan_gcps(plan, GcpOptions(gcp_count=3, check_count=0, min_frames=1, edge_margin_m=60.0))
+    text = str(info.value)
+    assert "edge_margin_m" not in text and "clearance_m" not in text
+    found = re.search(
+        r"^--edge-margin-m 60 .*leave no ground.*ask for --edge-margin-m ([\d.]+) or less", text
+    )
+    assert found is not None, text
+    fits = float(found.group(1))
+    assert fits == pytest.approx((50.0 - 0.01) / 1.01, abs=0.11)
+    assert usable_ground(plan, GcpOptions(edge_margin_m=fits)).area > 0
+    assert usable_ground(plan, GcpOptions(edge_margin_m=fits + 0.2)).is_empty
+
+
+def test_too_many_frames_asked_names_the_most_a_point_gets() -> None:
+    square = [(0.0, 0.0), (300.0, 0.0), (300.0, 300.0), (0.0, 300.0)]
+    plan = plan_polygons(make_spec({"gsd_cm": 2.5}), [to_lonlat_polygon(square)], [])
+    with pytest.raises(InputError) as info:
+        plan_gcps(plan, GcpOptions(gcp_count=3, check_count=0, min_frames=1000))
+    found = re.search(
+        r"^--min-frames 1000: .* the most any point gets is (\d+): ask for --min-frames \1", str(info.value)
+    )
+    assert found is not None, str(info.value)
+    most = int(found.group(1))
+    layout = plan_gcps(plan, GcpOptions(gcp_count=3, check_count=0, min_frames=most, min_separation_m=1.0))
+    assert min(frames_seeing(plan, p.x_m, p.y_m) for p in layout.points) == most
+
+
+@pytest.mark.parametrize(
+    ("field", "value", "option"),
+    [
+        ("check_count", -1, "--check -1"),
+        ("min_frames", 0, "--min-frames 0"),
+        ("clearance_m", -1.0, "--clearance-m -1"),
+        ("edge_margin_m", math.nan, "--edge-margin-m nan"),
+        ("min_separation_m", math.inf, "--min-separation-m inf"),
+    ],
+)
+def test_bad_options_are_named_as_the_command_spells_them(field: str, value: float, option: str) -> None:
+    with pytest.raises(InputError) as info:
+        GcpOptions(**{field: value})  # type: ignore[arg-type]
+    assert str(info.value).startswith(option), str(info.value)
 
 
 def test_expected_accuracy_follows_the_gsd() -> None:

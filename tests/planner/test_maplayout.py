@@ -134,3 +134,101 @@ def test_median_is_numpy_median(values: list[float]) -> None:
 def test_median_of_nothing_is_refused() -> None:
     with pytest.raises(ValueError, match="no values"):
         median(np.zeros(0))
+
+
+# ------------------------------------------------------------------ issue 24: a map read at its scale
+
+
+def _plan(name: str) -> object:
+    return plan_survey(load_spec(MISSIONS[0].parent / f"{name}.toml"))
+
+
+def test_passes_of_other_heights_and_looks_get_their_own_colours() -> None:
+    """The multi-scale block's two nadir heights, and the quarry's four oblique looks, are told
+    apart by colour and named in the legend; the groups still count every line once."""
+    from planner.maplayout import pass_styles
+
+    multiscale = _plan("field-multiscale")
+    styles = pass_styles(multiscale)  # type: ignore[arg-type]
+    heights = sorted({round(p.alt_agl_m) for p in multiscale.passes if p.lines})  # type: ignore[attr-defined]
+    assert len(heights) == 2
+    assert len(styles) == 2 and len({s.colour for s in styles}) == 2
+    for style, height in zip(sorted(styles, key=lambda s: s.label), sorted(heights, key=str), strict=True):
+        assert f"at {height:g} m" in style.label or any(f"at {h:g} m" in style.label for h in heights)
+    quarry = _plan("quarry-block")
+    styles = pass_styles(quarry)  # type: ignore[arg-type]
+    obliques = [s for s in styles if "oblique" in s.label]
+    assert len(obliques) == 4 and len({s.colour for s in obliques}) == 4
+    assert len({s.colour for s in styles}) == len(styles)
+    for plan in (multiscale, quarry):
+        counted = 0
+        for style in pass_styles(plan):  # type: ignore[arg-type]
+            found = re.search(r"\(([\d,]+) lines?", style.label)
+            assert found is not None, style.label
+            counted += int(found.group(1).replace(",", ""))
+        assert counted == plan.summary.line_count  # type: ignore[attr-defined]
+        drawn = sorted(i for s in pass_styles(plan) for i in s.pass_indices)  # type: ignore[arg-type]
+        assert drawn == sorted(p.index for p in plan.passes if p.lines)  # type: ignore[attr-defined]
+
+
+def test_stations_and_footprints_are_drawn_only_where_they_can_be_told_apart() -> None:
+    """On the page each map gets: the gully's 628 stations are apart and drawn; the quarry's
+    11,788 over six crossing passes are a mat, left out, and the legend says so and where they
+    are. The oracle is the page's own scale: the stations' spacing in points and their count per
+    square inch of the area, computed here from the stations and the page size."""
+    from planner.maplayout import MAX_STATIONS_PER_IN2, MIN_VISIBLE_SPACING_PT, map_frame, simplification
+
+    for name, drawn in (("bardenas-gully", True), ("quarry-block", False)):
+        plan = _plan(name)
+        frame = map_frame(plan)  # type: ignore[arg-type]
+        st = plan.stations  # type: ignore[attr-defined]
+        steps = np.hypot(np.diff(st.x_m), np.diff(st.y_m))
+        spacing_pt = median(steps[steps > 0]) * frame.points_per_m
+        per_in2 = len(st) / (plan.area_xy.area * (frame.points_per_m / 72) ** 2)  # type: ignore[attr-defined]
+        visible = spacing_pt >= MIN_VISIBLE_SPACING_PT and per_in2 <= MAX_STATIONS_PER_IN2
+        assert visible is drawn, (name, spacing_pt, per_in2)
+        simple = simplification(plan, frame)  # type: ignore[arg-type]
+        assert simple.stations is drawn and simple.footprints is drawn
+        if not drawn:
+            assert any("exposure stations not drawn" in n and "stations.geojson" in n for n in simple.notes)
+            assert any("footprints not drawn" in n for n in simple.notes)
+        else:
+            assert simple.notes == ()
+
+
+def test_the_quarry_map_draws_its_sorties(tmp_path: Path) -> None:
+    """Each sortie's number sits in a white disc at its first station, ringed in its pass's
+    colour: read back from the PNG at the place the page layout puts that station."""
+    import matplotlib.image as mpimg
+
+    from planner.maplayout import map_frame, pass_styles
+    from planner.mapplot import render_map_png
+    from planner.sorties import split_sorties
+
+    plan = _plan("quarry-block-sorties")
+    sorties = split_sorties(plan)  # type: ignore[arg-type]
+    assert len(sorties) > 10
+    dpi = 100
+    render_map_png(plan, tmp_path / "map.png", dpi=dpi, sorties=[s.plan for s in sorties])  # type: ignore[arg-type]
+    rgb = mpimg.imread(tmp_path / "map.png")[..., :3]
+    frame = map_frame(plan)  # type: ignore[arg-type]
+    ox, oy = plan.home_xy_m  # type: ignore[attr-defined]
+    colour_of = {i: s.colour for s in pass_styles(plan) for i in s.pass_indices}  # type: ignore[arg-type]
+    x0, x1, y0, y1 = frame.limits
+    radius_px = 6.5 / 72 * dpi
+    found = 0
+    for sortie in sorties:
+        st = sortie.plan.stations
+        x_m, y_m = float(st.x_m[0]) - ox, float(st.y_m[0]) - oy
+        col = (frame.left_in + (x_m - x0) / (x1 - x0) * frame.map_w_in) * dpi
+        row = (frame.top_in + (y1 - y_m) / (y1 - y0) * frame.map_h_in) * dpi
+        ring = np.array([int(colour_of[int(st.pass_index[0])][i : i + 2], 16) / 255 for i in (1, 3, 5)])
+        angles = np.linspace(0, 2 * np.pi, 24, endpoint=False)
+        on_ring = [
+            rgb[round(row + radius_px * np.sin(a)), round(col + radius_px * np.cos(a))] for a in angles
+        ]
+        near = sum(np.abs(px - ring).max() < 0.2 for px in on_ring)
+        inside = rgb[round(row - 0.55 * radius_px), round(col)]
+        found += near >= 6 and inside.min() > 0.85  # its ring in the pass's colour, its white face
+    # every sortie's disc, but where two sorties start side by side the later covers the earlier
+    assert found >= 0.8 * len(sorties), (found, len(sorties))

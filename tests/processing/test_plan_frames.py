@@ -24,9 +24,10 @@ from processing.plan_frames import frames_from_plan
 GARFIELD = SHARED_DATA / "garfield_rgb"
 
 
-def test_plan_folder_frames_match_the_stations(gully: tuple[object, Path]) -> None:
+def test_plan_folder_frames_match_the_stations(gully: tuple[object, Path], tmp_path: Path) -> None:
     plan, folder = gully
-    assert is_plan_folder(folder) and not is_plan_folder(GARFIELD)
+    (tmp_path / "IMG_0001.JPG").write_bytes(b"\xff\xd8\xff\xd9")  # a folder of frames, not a plan
+    assert is_plan_folder(folder) and not is_plan_folder(tmp_path)
     frames, info = frames_from_plan(folder)
     st = plan.stations  # type: ignore[attr-defined]
     assert len(frames) == len(st)
