@@ -1,6 +1,7 @@
 """Plans of part of a plan's lines (a sortie, what is left after a flight cut short): the lines
 chosen are built into a mission, and fitted to the terrain, as the whole plan was
-(planner.sorties, planner.resume)."""
+(planner.sorties, planner.resume). What a sortie or a resume plan chooses is theirs; how a choice
+of lines becomes a plan of its own is here."""
 
 from __future__ import annotations
 

@@ -1,6 +1,7 @@
 """What ``sfap plan`` does, as one library call: a mission spec planned (planner.survey), cut to
 what is left after a flight cut short (planner.resume), split into sorties when the vehicle has
-an endurance (planner.sorties), and its files written (planner.plan_folder)."""
+an endurance (planner.sorties), and its files written (planner.plan_folder). No geometry here:
+only the order of those steps, as the command runs them."""
 
 from __future__ import annotations
 

@@ -1,4 +1,9 @@
-"""Planning a survey: from a mission spec to a :class:`~planner.plan.SurveyPlan`.
+"""Planning a block survey (polygons): from a mission spec to a :class:`~planner.plan.SurveyPlan`.
+
+Where a change belongs (DESIGN.md, "The planner's flow"): a block's layout here; a corridor's in
+planner.corridor; what both share in planner.survey_steps; the flight path and its items in
+planner.mission_builder, planner.flight_path, planner.mission_items; what ``sfap plan`` does
+around a plan (resume, sorties, files) in planner.plan_run.
 
 The steps, each in its own module:
 1. area: load the polygons, remove holes and exclusions (planner.area), project into the
@@ -8,8 +13,10 @@ The steps, each in its own module:
 3. lines: camera-on segments per pass with guaranteed edge coverage (planner.lines);
 4. route: boustrophedon order from the corner nearest the vehicle, transits around no-fly
    zones (planner.route);
-5. mission: the items an autopilot flies, and every station exactly where the trigger plan
-   fires it (planner.mission_builder).
+5. flight path: the lines in order, routed, turned and entered as the vehicle flies them
+   (planner.mission_builder -> planner.flight_path), reshaped over a DEM
+   (planner.terrain_follow), then read: every station exactly where the trigger plan fires
+   it, the flight time, and the items an autopilot flies (planner.mission_items).
 
 The steps a corridor shares (area, height, home, speed, terrain, the plan from the built
 mission) are planner.survey_steps.

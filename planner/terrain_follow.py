@@ -32,9 +32,10 @@ from numpy.typing import NDArray
 
 from .camera import Camera
 from .errors import PlanningError
+from .flight_path import PathPoint, Role
 from .footprint import cast_on_dem, image_grid_mm
 from .geo import LocalFrame
-from .mission import HomePosition, MavCmd, MissionItem
+from .mission import HomePosition
 from .mission_builder import BuiltMission, PassPlan
 from .plan import Stations
 from .spec import TerrainSpec
@@ -132,18 +133,23 @@ def apply_terrain(
     camera: Camera,
     footprint_scale: float = 1.0,
 ) -> tuple[BuiltMission, HomePosition, TerrainSummary]:
-    """Waypoint altitudes, extra waypoints and station heights over the DEM (module docstring)."""
+    """Waypoint altitudes, extra waypoints and station heights over the DEM (module docstring):
+    the flight path reshaped, then its items emitted again (planner.mission_items)."""
+    flat = built.path
+    along = flat.distance_along_m()
+    track = flat.horizontal()  # the points that end legs; the samples are taken along them
     path = built.path_xy_m
+    path_s = np.asarray([along[k] for k in track], float)
     home_ground = float(dem.elevation_at(np.array([home_xy[0]]), np.array([home_xy[1]]), frame)[0])
 
     # Sample every leg of the path (both ends included), remembering where legs start.
     s_parts, x_parts, y_parts = [], [], []
     for k in range(len(path) - 1):
         (x0, y0), (x1, y1) = path[k], path[k + 1]
-        length = built.path_s_m[k + 1] - built.path_s_m[k]
+        length = path_s[k + 1] - path_s[k]
         n = max(1, math.ceil(length / terrain.sample_spacing_m))
         t = np.linspace(0.0, 1.0, n + 1)[:-1] if k < len(path) - 2 else np.linspace(0.0, 1.0, n + 1)
-        s_parts.append(built.path_s_m[k] + t * length)
+        s_parts.append(path_s[k] + t * length)
         x_parts.append(x0 + t * (x1 - x0))
         y_parts.append(y0 + t * (y1 - y0))
         s = np.concatenate(s_parts)
@@ -159,7 +165,7 @@ def apply_terrain(
         profile = np.full_like(s, home_ground + alt_agl_m)
 
     # Waypoints: the path points (their profile altitude) plus the splits of each leg.
-    point_sample = np.searchsorted(s, built.path_s_m - 1e-9)
+    point_sample = np.searchsorted(s, path_s - 1e-9)
     point_sample[-1] = len(s) - 1
     extra_by_leg: dict[int, list[int]] = {}
     if terrain.follow:
@@ -169,35 +175,37 @@ def apply_terrain(
             if splits:
                 extra_by_leg[k] = [i + m for m in splits]
 
-    # Rebuild the items: path-point waypoints get their altitude; extra waypoints go in front.
-    item_to_point = {idx: k for k, idx in enumerate(built.path_item_index) if idx is not None}
-    old = built.mission.items
-    items: list[MissionItem] = []
+    # The path again: each waypoint at its altitude; the points added on a leg go in front of
+    # the waypoint that ends it (or of the return to launch: the way home keeps its clearance
+    # too). A plane's approach and landing keep the altitudes of its landing sequence.
+    leg_end = {point: k for k, point in enumerate(track)}  # point index -> its place in the track
+    points: list[PathPoint] = []
     wp_s: list[float] = [0.0]
     wp_alt: list[float] = [float(profile[0])]
-
-    def extra_waypoints(k_leg: int) -> None:
-        for m in extra_by_leg.get(k_leg, []):
-            lon, lat = frame.to_lonlat(x[m], y[m])
-            items.append(MissionItem.waypoint(float(lat), float(lon), float(profile[m] - home_ground)))
-            wp_s.append(float(s[m]))
-            wp_alt.append(float(profile[m]))
-
-    for index, item in enumerate(old):
-        if index in item_to_point:
-            k = item_to_point[index]
-            extra_waypoints(k - 1)
-            alt_rel = float(profile[point_sample[k]] - home_ground)
-            items.append(dataclasses.replace(item, param7=alt_rel))
-            wp_s.append(float(built.path_s_m[k]))
-            wp_alt.append(float(profile[point_sample[k]]))
-        elif int(item.command) == MavCmd.NAV_RETURN_TO_LAUNCH:
-            extra_waypoints(len(path) - 2)  # the way home keeps its clearance too
-            items.append(item)
+    lands_itself = any(p.role is Role.APPROACH for p in flat.points)  # a plane; else RTL
+    for index, point in enumerate(flat.points):
+        place = leg_end.get(index, 0)  # > 0: it ends leg place - 1 of the track
+        rtl = point.role is Role.LANDING and not lands_itself
+        if place > 0 and (point.is_waypoint or rtl):
+            for m in extra_by_leg.get(place - 1, []):
+                points.append(
+                    PathPoint(
+                        xy=(float(x[m]), float(y[m])), role=Role.TERRAIN, pass_index=point.pass_index,
+                        line_index=point.line_index, alt_m=float(profile[m] - home_ground),
+                    )
+                )  # fmt: skip
+                wp_s.append(float(s[m]))
+                wp_alt.append(float(profile[m]))
+        if place > 0 and point.is_waypoint:
+            sample = point_sample[place]
+            points.append(dataclasses.replace(point, alt_m=float(profile[sample] - home_ground)))
+            wp_s.append(float(path_s[place]))
+            wp_alt.append(float(profile[sample]))
         else:
-            items.append(item)
+            points.append(point)
     wp_s.append(float(s[-1]))
     wp_alt.append(float(profile[-1]))
+    new_path = dataclasses.replace(flat, points=tuple(points))
 
     # What the vehicle flies: straight legs between waypoints.
     flown = np.interp(s, np.asarray(wp_s), np.asarray(wp_alt))
@@ -230,7 +238,7 @@ def apply_terrain(
     # Stations: altitude from the flown legs, height above the ground below them.
     st = built.stations
     n = len(st)
-    st_alt = np.interp(built.station_s_m, np.asarray(wp_s), np.asarray(wp_alt))
+    st_alt = np.interp(flat.station_distance_m(along), np.asarray(wp_s), np.asarray(wp_alt))
     st_ground = dem.elevation_at(st.x_m, st.y_m, frame) if n else np.zeros(0)
     st_agl = st_alt - st_ground
     # Footprints cast on the DEM from each station's flown position (rays through a grid of the
@@ -266,7 +274,7 @@ def apply_terrain(
     else:
         scale_min = 1.0
     new_home = dataclasses.replace(home, alt_amsl_m=home_ground)
-    mission = dataclasses.replace(built.mission, items=tuple(items), home=new_home)
+    mission = built.emitter(new_path, new_home)
     summary = TerrainSummary(
         dem=dem.path.name,
         follow=terrain.follow,
@@ -288,7 +296,7 @@ def apply_terrain(
     )
     log.info("terrain: %d waypoints added, height above ground %.1f-%.1f m", summary.waypoints_added,
              summary.station_alt_agl_min_m, summary.station_alt_agl_max_m)  # fmt: skip
-    return dataclasses.replace(built, mission=mission, stations=stations), new_home, summary
+    return dataclasses.replace(built, path=new_path, mission=mission, stations=stations), new_home, summary
 
 
 #: Rays per image side cast on the DEM for each frame (a _GRID x _GRID grid, border included).
