@@ -52,11 +52,15 @@ def summarize(
     max_trigger = min(
         ex.max_speed_for_trigger_m_s(p.trigger_distance_m, camera.min_trigger_interval_s) for p in passes
     )
-    max_blur = (
-        ex.max_speed_for_blur_m_s(min(gsd_along, gsd_across), camera.shutter_s, spec.survey.max_blur_px)
-        if camera.shutter_s is not None
-        else None
-    )
+    blur_limits = [  # the limit the planner enforces, per pass
+        ex.blur_speed_limit_m_s(
+            camera, spec.orientation, spec.survey.max_blur_px,
+            p.alt_agl_m if p.alt_agl_m is not None else alt_agl_m,
+            p.tilt_deg, p.direction_deg, p.look_heading_deg,
+        )
+        for p in passes
+    ]  # fmt: skip
+    max_blur = min((b for b in blur_limits if b is not None), default=None)
     max_speed = min(max_trigger, max_blur) if max_blur is not None else max_trigger
     interval = ex.exposure_interval_s(air_base, speed_m_s)
     return Summary(

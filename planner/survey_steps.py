@@ -27,11 +27,9 @@ from shapely.geometry import MultiPolygon, Polygon
 
 from . import exposure as ex
 from .area import build_area, check_area_size
-from .camera import Orientation
 from .coverage import ViewShares
 from .errors import AreaError, PlanningError, SpecError
 from .fixed_wing import fixed_wing_for
-from .footprint import near_far_gsd_cm
 from .geo import LocalFrame, geodesic_area_m2
 from .mission import HomePosition
 from .mission_builder import BuiltMission, PassPlan, build_mission
@@ -197,17 +195,12 @@ def check_speed(
     if spec.survey.trigger is TriggerMode.HOVER:
         return speed_m_s
     limits = {"trigger": ex.max_speed_for_trigger_m_s(trigger_m, camera.min_trigger_interval_s)}
-    if camera.shutter_s is not None:
-        along_gsd = (
-            min(near_far_gsd_cm(camera, alt_agl_m, pdef.tilt_deg))
-            if pdef.tilt_deg
-            else (
-                camera.gsd_y_cm(alt_agl_m)
-                if spec.orientation is Orientation.LANDSCAPE
-                else camera.gsd_x_cm(alt_agl_m)
-            )
-        )
-        limits["blur"] = ex.max_speed_for_blur_m_s(along_gsd, camera.shutter_s, spec.survey.max_blur_px)
+    blur = ex.blur_speed_limit_m_s(
+        camera, spec.orientation, spec.survey.max_blur_px, alt_agl_m, pdef.tilt_deg, pdef.direction_deg,
+        pdef.look_heading_deg,
+    )  # fmt: skip
+    if blur is not None:
+        limits["blur"] = blur
     reason, limit = min(limits.items(), key=lambda kv: kv[1])
     if speed_m_s <= limit + 1e-9:
         return speed_m_s

@@ -102,7 +102,8 @@ def test_every_summary_figure_against_an_independent_computation(orientation: st
     assert s.exposure_interval_s == pytest.approx(base / speed)  # the along-track base, not the spacing
     assert s.speed_m_s == pytest.approx(speed)
     assert s.max_speed_trigger_m_s == pytest.approx(base / 1.0)
-    assert s.max_speed_blur_m_s == pytest.approx(0.5 * min(s.gsd_along_cm, s.gsd_across_cm) / 100 / 0.0005)
+    # the limit enforced: blur along the motion (the lines run along the image axis of gsd_along)
+    assert s.max_speed_blur_m_s == pytest.approx(0.5 * s.gsd_along_cm / 100 / 0.0005)
     assert s.max_speed_m_s == pytest.approx(min(s.max_speed_trigger_m_s, s.max_speed_blur_m_s))
     assert s.base_height_ratio == pytest.approx(base / height)
     # intersection angle: the two rays to the ground point midway between the cameras
