@@ -19,6 +19,7 @@ import dataclasses
 import itertools
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
@@ -37,6 +38,9 @@ from .mission_items import MissionEmitter, wrap180
 from .plan import FlightLine, PassKind, Stations
 from .route import Router, boustrophedon, nearest_start, polyline_length_m
 from .spec import MissionSpec, TriggerMode
+
+if TYPE_CHECKING:
+    from .terrain_follow import CastOverlap
 
 #: Acceleration assumed for the time lost at each stop or sharp turn of a multirotor, m/s2.
 _MULTIROTOR_ACCEL_M_S2 = 2.0
@@ -63,6 +67,9 @@ class PassPlan:
     centre_gsd_cm: float
     #: Height of this pass when it differs from the mission's (multi-scale blocks), metres.
     alt_agl_m: float | None = None
+    #: The overlaps the spec asks of this pass (percent): over a DEM they must hold everywhere.
+    front_overlap_pct: float | None = None
+    side_overlap_pct: float | None = None
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -78,6 +85,8 @@ class BuiltMission:
     path_lonlat_deg: NDArray[np.float64]
     flight_distance_m: float
     flight_time_s: float
+    #: Over a DEM: each nadir pass's smallest overlaps, from the footprints cast on it.
+    cast_overlaps: tuple[CastOverlap, ...] = ()
 
     @property
     def lines(self) -> dict[int, tuple[FlightLine, ...]]:

@@ -237,6 +237,8 @@ def _lay_out_passes(
                 if pdef.alt_agl_m is None
                 else camera.gsd_cm(pdef.alt_agl_m),
                 alt_agl_m=pdef.alt_agl_m,
+                front_overlap_pct=pdef.front_overlap_pct,
+                side_overlap_pct=pdef.side_overlap_pct,
             )
         )
     assert views is not None
