@@ -98,7 +98,7 @@ def plan_polygons(spec: MissionSpec, polygons: list[Polygon], exclusions: list[P
                 f"{spec.source}: [[survey.scale]] passes are not planned over a [terrain] DEM yet; "
                 f"plan each height as its own mission, or remove [terrain]"
             )
-        pass_defs += [steps.PassDef(**fields) for fields in scale_pass_defs(spec, direction)]
+        pass_defs += [steps.PassDef(**fields) for fields in scale_pass_defs(spec, direction, alt_agl_m)]
 
     blocked_xy = steps.blocked_xy(spec, site.zones_xy)
     dem = steps.read_dem(spec, site.area_lonlat, home) if spec.terrain is not None else None
