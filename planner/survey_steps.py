@@ -456,10 +456,7 @@ def finish_plan(
     vehicle = spec.vehicle
     warnings.extend(
         limit_warnings(
-            autopilot=vehicle.autopilot,
-            item_count=len(built.mission.items),
-            flight_time_s=built.flight_time_s,
-            max_flight_time_min=vehicle.max_flight_time_min,
+            vehicle=vehicle, item_count=len(built.mission.items), flight_time_s=built.flight_time_s
         )
     )
     summary = summarize(

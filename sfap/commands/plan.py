@@ -152,9 +152,7 @@ def _present(run: PlanRun, out_dir: Path, as_json: bool) -> None:
             )
         )
     echo_table(rows, title=f"{plan.name}: planned into {out_dir}")
-    for warning in plan.warnings:
-        if sorties and warning.startswith("the flight takes"):
-            continue  # the sorties below each fit one battery
+    for warning in plan.warnings:  # with sorties, of the plan as flown: each sortie fits one battery
         click.echo(f"warning: {warning}", err=True)
     if sorties:
         usable = spec.vehicle.usable_flight_s or 0.0
