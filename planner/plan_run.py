@@ -33,9 +33,9 @@ class PlanRun:
     @property
     def file_count(self) -> int:
         """How many files :meth:`write` writes (for a progress bar)."""
-        from .plan_folder import OUTPUT_FILES
+        from .plan_folder import output_files
 
-        return len(OUTPUT_FILES) * (1 + len(self.sorties))
+        return len(output_files(self.plan)) + sum(len(output_files(s.plan)) for s in self.sorties)
 
     def write(
         self,

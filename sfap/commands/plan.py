@@ -86,7 +86,9 @@ def command(
 ) -> None:
     """Plan a survey from SPEC_FILE (a mission spec in TOML) and write, into OUTPUT:
     mission.plan (QGroundControl), mission.waypoints (QGC WPL 110), flight_lines.geojson,
-    stations.geojson, footprints.geojson, area.geojson, mission.kml, map.png and summary.json.
+    stations.geojson, footprints.geojson, area.geojson, mission.kml, map.png and summary.json;
+    a terrain plan also carries its DEM, clipped to the area and home with a margin, so the
+    folder is self-contained (the check, the monitor and the re-fly read it there).
 
     Distances in metres, GSD in cm, altitudes above ground (AGL) or home. The files are
     written all at once: on any error nothing is left behind.
