@@ -221,11 +221,21 @@ def dem_file_name(plan: SurveyPlan) -> str | None:
     return name if name not in OUTPUT_FILES else f"dem-{name}"
 
 
+#: Above this many photos the footprints are written as a GeoPackage (GPKG_FILE: layers stations
+#: and footprints) instead of footprints.geojson: a GIS opens it with a spatial index, and it is
+#: a fraction of the GeoJSON's size. stations.geojson stays (the reader's file).
+GPKG_ABOVE_PHOTOS = 100_000
+GPKG_FILE = "layers.gpkg"
+
+
 def output_files(plan: SurveyPlan) -> tuple[str, ...]:
-    """Every file :func:`write_outputs` writes for ``plan``, in order: OUTPUT_FILES, then a
-    terrain plan's DEM."""
+    """Every file :func:`write_outputs` writes for ``plan``, in order: OUTPUT_FILES (a large
+    plan's footprints as GPKG_FILE instead), then a terrain plan's DEM."""
+    names: tuple[str, ...] = OUTPUT_FILES
+    if len(plan.stations) > GPKG_ABOVE_PHOTOS:
+        names = tuple(GPKG_FILE if n == "footprints.geojson" else n for n in names)
     dem = dem_file_name(plan)
-    return OUTPUT_FILES if dem is None else (*OUTPUT_FILES, dem)
+    return names if dem is None else (*names, dem)
 
 
 def write_outputs(
@@ -259,6 +269,10 @@ def write_outputs(
         "map.png": lambda p: render_map_png(plan, p),
         SUMMARY_FILE: lambda p: atomic_write_text(p, summary_json(plan)),
     }
+    if len(plan.stations) > GPKG_ABOVE_PHOTOS:
+        from .formats.geopackage import write_layers_gpkg
+
+        writers[GPKG_FILE] = lambda p: write_layers_gpkg(plan, p)
     dem_name = dem_file_name(plan)
     if dem_name is not None:
         assert plan.layout is not None and plan.layout.dem is not None
