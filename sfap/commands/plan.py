@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 
 import click
@@ -104,14 +105,22 @@ def command(
     Example: sfap plan missions/bardenas-gully.toml -o out/gully
     """
     with warnings_once("planner") as handled:  # each warning printed once
+        started = time.monotonic()
+        loud = False  # a plan above ANNOUNCE_PHOTOS takes more than a few seconds: say each step
 
         def announce(guess: PlanEstimate) -> None:
-            if guess.photos > ANNOUNCE_PHOTOS and not as_json:
+            nonlocal loud
+            loud = guess.photos > ANNOUNCE_PHOTOS and not as_json and not no_progress
+            if loud:
                 click.echo(f"planning {guess.text()}", err=True)
+
+        def stage(what: str) -> None:
+            if loud:
+                click.echo(f"  {time.monotonic() - started:6.1f} s  {what}", err=True)
 
         run = plan_spec(
             spec_file, resume_from=resume_from, resume_record=resume_record, max_photos=max_photos,
-            announce=announce,
+            announce=announce, stage=stage,
         )  # fmt: skip
         with progress("writing", run.file_count, enabled=not no_progress and not as_json) as advance:
             run.write(out_dir, overwrite=overwrite, progress=advance)
