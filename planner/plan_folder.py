@@ -221,11 +221,11 @@ def dem_file_name(plan: SurveyPlan) -> str | None:
     return name if name not in OUTPUT_FILES else f"dem-{name}"
 
 
-#: Above this many photos the footprints are written as a GeoPackage (GPKG_FILE: layers stations
-#: and footprints) instead of footprints.geojson: a GIS opens it with a spatial index, and it is
-#: a fraction of the GeoJSON's size. stations.geojson stays (the reader's file).
+#: Above this many photos the footprints are written as a GeoPackage (GPKG_FILE, layer
+#: footprints) instead of footprints.geojson: a GIS opens it through its spatial index instead
+#: of parsing every polygon. stations.geojson stays (the reader's file).
 GPKG_ABOVE_PHOTOS = 100_000
-GPKG_FILE = "layers.gpkg"
+GPKG_FILE = "footprints.gpkg"
 
 
 def output_files(plan: SurveyPlan) -> tuple[str, ...]:
@@ -270,9 +270,9 @@ def write_outputs(
         SUMMARY_FILE: lambda p: atomic_write_text(p, summary_json(plan)),
     }
     if len(plan.stations) > GPKG_ABOVE_PHOTOS:
-        from .formats.geopackage import write_layers_gpkg
+        from .formats.geopackage import write_footprints_gpkg
 
-        writers[GPKG_FILE] = lambda p: write_layers_gpkg(plan, p)
+        writers[GPKG_FILE] = lambda p: write_footprints_gpkg(plan, p)
     dem_name = dem_file_name(plan)
     if dem_name is not None:
         assert plan.layout is not None and plan.layout.dem is not None

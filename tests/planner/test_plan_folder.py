@@ -227,8 +227,8 @@ def test_a_terrain_plan_carries_its_dem_clipped_and_reads_it_back(tmp_path: Path
 def test_a_large_plan_writes_its_footprints_as_a_geopackage(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """Above the stated size the footprints go to a GeoPackage (layers stations and footprints)
-    instead of footprints.geojson; read back by GDAL through pyogrio, feature for feature."""
+    """Above the stated size the footprints go to a GeoPackage instead of footprints.geojson;
+    read back by GDAL through pyogrio, feature for feature."""
     from pyogrio import list_layers
     from pyogrio.raw import read
 
@@ -237,18 +237,16 @@ def test_a_large_plan_writes_its_footprints_as_a_geopackage(
     plan = plan_survey(load_spec(MISSIONS / "field-concave.toml"))
     monkeypatch.setattr(pf, "GPKG_ABOVE_PHOTOS", len(plan.stations) - 1)
     names = [p.name for p in write_outputs(plan, tmp_path / "out")]
-    assert "layers.gpkg" in names and "footprints.geojson" not in names and "stations.geojson" in names
-    gpkg = tmp_path / "out" / "layers.gpkg"
-    assert sorted(str(n) for n, _ in list_layers(gpkg)) == ["footprints", "stations"]
+    assert "footprints.gpkg" in names and "footprints.geojson" not in names and "stations.geojson" in names
+    gpkg = tmp_path / "out" / "footprints.gpkg"
+    assert [str(n) for n, _ in list_layers(gpkg)] == ["footprints"]
     st = plan.stations
-    meta, _, points, fields = read(gpkg, layer="stations")
-    assert meta["crs"] == "EPSG:4326" and len(points) == len(st)
-    xy = shapely.get_coordinates(shapely.from_wkb(points))
-    np.testing.assert_allclose(xy, np.column_stack([st.lon_deg, st.lat_deg]), atol=1e-12)
+    meta, _, polygons, fields = read(gpkg, layer="footprints")
+    assert meta["crs"] == "EPSG:4326"
     column = dict(zip(meta["fields"], fields, strict=True))
     np.testing.assert_array_equal(column["station"], np.arange(len(st)))
+    np.testing.assert_array_equal(column["line"], st.line_index)
     np.testing.assert_allclose(column["gsd_cm"], st.gsd_cm)
-    meta, _, polygons, _ = read(gpkg, layer="footprints")
     shapes = shapely.from_wkb(polygons)
     assert len(shapes) == len(st) and all(shapely.is_ccw(s.exterior) for s in shapes)
     expected = shapely.polygons(st.footprint_lonlat_deg)
