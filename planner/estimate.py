@@ -24,9 +24,10 @@ from .spec import MissionSpec, TriggerMode
 #: 570 MB of memory and 15-90 s of planning, quiet machine to loaded (BENCHMARKS.md, "The
 #: planner's size"); the 1,000 km2 block at 2.4 cm (about 957,000 photos) is refused.
 MAX_PHOTOS = 500_000
-#: Peak memory of `sfap plan` per photo and whatever the size, bytes: fitted to whole processes
-#: (25 km2: 23,856 photos, 136 MB; 100 km2: 95,625 photos, 200 MB; BENCHMARKS.md).
-BYTES_PER_PHOTO = 900
+#: Peak memory of `sfap plan` per photo and whatever the size, bytes, from whole processes
+#: (25 km2: 23,856 photos, 136 MB; 100 km2: 95,625 photos, 200 MB; 1,000 km2: 956,390 photos,
+#: 1,311 MB with its footprints.gpkg; BENCHMARKS.md): the largest case's slope, an upper bound.
+BYTES_PER_PHOTO = 1_250
 BASE_BYTES = 115_000_000
 #: Mission items per armed run of a line: camera on + trigger, camera off + trigger (and per line
 #: its entry and exit).
