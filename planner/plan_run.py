@@ -1,6 +1,7 @@
 """What ``sfap plan`` does, as one library call: a mission spec planned (planner.survey), cut to
 what is left after a flight cut short (planner.resume), split into sorties when the vehicle has
-an endurance (planner.sorties), and its files written (planner.plan_folder)."""
+an endurance (planner.sorties), and its files written (planner.plan_folder). No geometry here:
+only the order of those steps, as the command runs them."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from .errors import InputError
+from .estimate import MAX_PHOTOS, PlanEstimate
 from .plan import SurveyPlan
 from .spec import MissionSpec
 
@@ -31,9 +33,9 @@ class PlanRun:
     @property
     def file_count(self) -> int:
         """How many files :meth:`write` writes (for a progress bar)."""
-        from .plan_folder import OUTPUT_FILES
+        from .plan_folder import output_files
 
-        return len(OUTPUT_FILES) * (1 + len(self.sorties))
+        return len(output_files(self.plan)) + sum(len(output_files(s.plan)) for s in self.sorties)
 
     def write(
         self,
@@ -71,11 +73,16 @@ def plan_spec(
     *,
     resume_from: int | None = None,
     resume_record: str | os.PathLike[str] | None = None,
+    max_photos: int | None = MAX_PHOTOS,
+    announce: Callable[[PlanEstimate], None] | None = None,
+    stage: Callable[[str], None] | None = None,
 ) -> PlanRun:
     """Plan the mission spec ``spec_file``; with ``resume_from`` (a station, 0-based in flight
     order) or ``resume_record`` (the folder sfap monitor recorded, or its triggers.csv: after
     the last station it reached) only what is left. Sorties when the spec's vehicle has an
-    endurance."""
+    endurance. A block estimated beyond ``max_photos`` photos is refused at once (planner.estimate);
+    ``announce(estimate)`` is called first, before the planning itself; ``stage(what)`` at each
+    step of the planning (progress)."""
     from .resume import last_station_from_record, resume_plan
     from .spec import load_spec
     from .survey import plan_survey
@@ -83,7 +90,13 @@ def plan_spec(
     if resume_from is not None and resume_record is not None:
         raise InputError("give --resume-from or --resume-record, not both")
     spec = load_spec(Path(spec_file))
-    plan = plan_survey(spec)
+    if announce is not None:
+        from .survey import estimate_survey
+
+        guess = estimate_survey(spec)
+        if guess is not None:
+            announce(guess)
+    plan = plan_survey(spec, max_photos=max_photos, stage=stage)
     if resume_record is not None:
         resume_from = last_station_from_record(plan, Path(resume_record)) + 1
         if resume_from >= len(plan.stations):
@@ -97,5 +110,7 @@ def plan_spec(
     if spec.vehicle.endurance_s is not None:
         from .sorties import split_sorties
 
+        if stage is not None:
+            stage("splitting into sorties")
         sorties = tuple(split_sorties(plan))
     return PlanRun(spec=spec, plan=plan, sorties=sorties, resumed_from_station=resume_from)
