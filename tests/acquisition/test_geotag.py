@@ -1053,3 +1053,24 @@ def test_a_sync_position_passed_twice_is_refused() -> None:
     point = SyncPoint(frame="IMG_3.JPG", lat_deg=float(lat), lon_deg=float(lon))
     with pytest.raises(GeotagError, match=r"passes the sync position of IMG_3\.JPG 2 times"):
         sync_offset_by_track([(point, t0 + 20.0)], log)
+
+
+def test_frames_on_the_track_samples_keep_the_track_speed() -> None:
+    """A track sampled at the frames themselves (every time within 1 ms of a sample): each frame
+    takes its sample's position, and its speed from the interval beside it, not 0."""
+    t0 = 1_700_000_000.0
+    log = _line_track(t0, seconds=20, speed_m_s=12.0)
+    assert log.positions is not None
+    times = log.positions.time_utc_s[[0, 5, 10, 19]] + np.array([0.0, 0.0004, -0.0009, 0.0])
+    result = interpolation.interpolate_poses(times, positions=log.positions)
+    for k, pose in enumerate(result.poses):
+        assert pose is not None
+        assert pose.speed_m_s == pytest.approx(12.0, rel=1e-3)
+        assert pose.position_gap_s == 0.0
+        sample = [0, 5, 10, 19][k]
+        assert (
+            geodesic_distance_m(
+                pose.lat_deg, pose.lon_deg, log.positions.lat_deg[sample], log.positions.lon_deg[sample]
+            )
+            < 0.02
+        )
