@@ -86,7 +86,8 @@ def match_pairs(
     priors_m: dict[str, tuple[float, float, float]] | None = None,
     prior_sigma_m: tuple[float, float] = (5.0, 10.0),
 ) -> MatchRun:
-    """SIFT on ``names`` (files in ``image_dir``) downscaled to ``max_image_size_px`` on their
+    """One camera for every frame (the check's block has one camera and image size; its
+    intrinsics shared, as in a real reconstruction). SIFT on ``names`` (files in ``image_dir``) downscaled to ``max_image_size_px`` on their
     longer side, then COLMAP's matcher and two-view verification on ``pairs`` only; with
     ``map_models``, COLMAP's incremental mapper on those matches too (the frames each model
     registers, largest first); ``priors_m``: each frame's position in metres (a local Cartesian
@@ -101,7 +102,7 @@ def match_pairs(
         pairs_file.write_text("".join(f"{a} {b}\n" for a, b in pairs), encoding="utf-8")
         try:
             pycolmap.Database.open(str(database)).close()
-            pycolmap.import_images(str(database), str(image_dir), pycolmap.CameraMode.PER_IMAGE, list(names))
+            pycolmap.import_images(str(database), str(image_dir), pycolmap.CameraMode.SINGLE, list(names))
             if priors_m:
                 _write_priors(database, priors_m, prior_sigma_m)
             extraction = pycolmap.FeatureExtractionOptions(max_image_size=max_image_size_px)
