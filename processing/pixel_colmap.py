@@ -87,13 +87,13 @@ def match_pairs(
     prior_sigma_m: tuple[float, float] = (5.0, 10.0),
 ) -> MatchRun:
     """One camera for every frame (the check's block has one camera and image size; its
-    intrinsics shared, as in a real reconstruction). SIFT on ``names`` (files in ``image_dir``) downscaled to ``max_image_size_px`` on their
-    longer side, then COLMAP's matcher and two-view verification on ``pairs`` only; with
-    ``map_models``, COLMAP's incremental mapper on those matches too (the frames each model
-    registers, largest first); ``priors_m``: each frame's position in metres (a local Cartesian
-    frame), given to the mapper as pose priors with standard deviations ``prior_sigma_m``
-    (horizontal, vertical) under a robust loss, as the hand-off's reconstruction does.
-    ProcessingError when COLMAP fails on the images."""
+    intrinsics shared, as in a real reconstruction). SIFT on ``names`` (files in ``image_dir``)
+    downscaled to ``max_image_size_px`` on their longer side, then COLMAP's matcher and two-view
+    verification on ``pairs`` only; with ``map_models``, COLMAP's incremental mapper on those
+    matches too (the frames each model registers, largest first); ``priors_m``: each frame's
+    position in metres (a local Cartesian frame), given to the mapper as pose priors with standard
+    deviations ``prior_sigma_m`` (horizontal, vertical) under a robust loss. ProcessingError when
+    COLMAP fails on the images."""
     import pycolmap
 
     with tempfile.TemporaryDirectory(prefix="sfap-match-") as tmp, _stderr_to(log_path):
