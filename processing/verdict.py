@@ -91,8 +91,8 @@ class Thresholds:
       holding 70 % of them, and a quick reconstruction of the matches (COLMAP's mapper) must
       register 70 % of them in one model. Calibrated on the real blocks in ../shared/data:
       garfield_rgb (its reconstruction falls apart: 13 of 28 frames in the largest model; the
-      quick model 11, 39 %) fails, seneca_half (reconstructs at 53 % endlap: 85 % of its central 40 frames in the
-      quick model, 86-88 % matched into one part) passes; DESIGN.md, "The field check's
+      quick model 11, 39 %) fails, seneca_half (reconstructs at 53 % endlap: 85 % of its central
+      40 frames in the quick model, 86-88 % matched into one part) passes; DESIGN.md, "The field check's
       verdict". When both hold, the endlap floor and the B/H along the lines are advice.
     """
 
