@@ -79,7 +79,9 @@ def _bracket(track_t: F64, t: F64, max_gap_s: float) -> tuple[I64, I64, F64, F64
     """Per time: sample indices (a, b), weight of b (position = a + w (b - a)), the length of
     the interval used (0 on a sample) and a reason (None when usable).
 
-    A time within 1 ms of a sample takes that sample. A time beyond an end of the track, or in a
+    A time within 1 ms of a sample takes that sample's position (the interval reported is 0), with
+    the usable interval after it (else before it) for the speed: a track sampled at the frames
+    themselves still has speeds. A time beyond an end of the track, or in a
     gap longer than ``max_gap_s``, but within :data:`EDGE_S` of a sample is extrapolated from the
     interval on the sample's other side (a log starts a moment after the first trigger it
     records; a sparse track is sampled at the frames themselves). Anything else is refused.
@@ -99,10 +101,21 @@ def _bracket(track_t: F64, t: F64, max_gap_s: float) -> tuple[I64, I64, F64, F64
     for k, tk in enumerate(t):
         i = int(idx[k])  # track_t[i - 1] <= tk < track_t[i]
         pair: tuple[int, int] | None = None
-        if i >= 1 and tk - track_t[i - 1] <= 1e-3:
-            lo[k] = hi[k] = i - 1
-        elif i < n and track_t[i] - tk <= 1e-3:
-            lo[k] = hi[k] = i
+        on = (
+            i - 1
+            if i >= 1 and tk - track_t[i - 1] <= 1e-3
+            else i
+            if i < n and track_t[i] - tk <= 1e-3
+            else -1
+        )
+        if on >= 0:
+            # On a sample: its position, and the interval after it (else before it) for the speed.
+            lo[k] = hi[k] = on
+            for a, b in ((on, on + 1), (on - 1, on)):
+                if usable(a, b):
+                    lo[k], hi[k] = a, b
+                    weight[k] = (tk - track_t[a]) / (track_t[b] - track_t[a])
+                    break
         elif usable(i - 1, i):
             pair = (i - 1, i)
         elif i >= 2 and tk - track_t[i - 1] <= EDGE_S and usable(i - 2, i - 1):

@@ -45,6 +45,7 @@ from numpy.typing import NDArray
 from shapely.geometry import MultiPolygon, Polygon
 
 from planner.camera import Orientation
+from planner.errors import InputError
 from planner.geo import LocalFrame
 
 from .check_result import CheckResult, Gap
@@ -55,6 +56,7 @@ from .errors import ProcessingError
 from .footprints import Footprints
 from .frames import AttitudeSource, Frames, frames_local_frame
 from .ground import Ground
+from .pixel_match import PixelFigures, PixelOptions
 from .plan_frames import PlanInfo
 from .verdict import DEFAULT_THRESHOLDS, Thresholds, above, judge, overlap_warnings
 
@@ -62,6 +64,11 @@ log = logging.getLogger(__name__)
 
 #: Images whose median height differs from the plan's by more than this (and 10 %) are reported, m.
 PLAN_HEIGHT_TOLERANCE_M = 10.0
+#: The cell sizes a check accepts, m, and the most cells its raster may hold (int32 view counts and
+#: a GSD raster: 50 million cells are 400 MB).
+MIN_CELL_M = 0.01
+MAX_CELL_M = 1000.0
+MAX_CELLS = 50_000_000
 #: View counts whose area shares are reported ("seen by at least k frames").
 VIEW_LEVELS = (1, 2, 3, 5, 9)
 
@@ -229,10 +236,21 @@ def count_views(
     ymin = min(area_xy.bounds[1], float(rings[..., 1].min()))
     xmax = max(area_xy.bounds[2], float(rings[..., 0].max()))
     ymax = max(area_xy.bounds[3], float(rings[..., 1].max()))
+    default = default_cell_m(projection.short_side_m, (xmax - xmin) * (ymax - ymin))
     if cell_m is None:
-        cell_m = default_cell_m(projection.short_side_m, (xmax - xmin) * (ymax - ymin))
-    elif not (math.isfinite(cell_m) and cell_m > 0):
-        raise ProcessingError(f"cell_m = {cell_m} must be a positive number of metres")
+        cell_m = default
+    elif not (math.isfinite(cell_m) and MIN_CELL_M <= cell_m <= MAX_CELL_M):
+        raise InputError(
+            f"cell size {cell_m:g} m (--cell-m) is outside {MIN_CELL_M:g}-{MAX_CELL_M:g} m; give a cell "
+            f"in that range (the default here is {default:g} m, 1/50 of a frame's shorter ground side)"
+        )
+    elif (xmax - xmin) * (ymax - ymin) / cell_m**2 > MAX_CELLS:
+        least = math.sqrt((xmax - xmin) * (ymax - ymin) / MAX_CELLS)
+        raise InputError(
+            f"cell size {cell_m:g} m (--cell-m) makes {(xmax - xmin) * (ymax - ymin) / cell_m**2:.3g} cells "
+            f"over the frames' {xmax - xmin:.0f} x {ymax - ymin:.0f} m, more than {MAX_CELLS:,}; give at "
+            f"least {least:.2g} m (the default here is {default:g} m)"
+        )
     grid = Grid.from_bounds((xmin, ymin, xmax, ymax), cell_m, projection.frame.crs)
     log.info("view counts over %d x %d cells of %g m", grid.rows, grid.cols, cell_m)
     counts = view_count_raster(rings, grid, progress=progress)
@@ -290,6 +308,7 @@ def block_warnings(
     """Step 6: what may make the figures wrong or the block weak, beyond the thresholds: altitude
     drift, an assumed attitude, frames left out, the doming risk, a flight that differs from its
     plan."""
+    from .image_frames import summarise_names
     from .survey_frames import altitude_drift_warning
 
     out: list[str] = []
@@ -310,7 +329,7 @@ def block_warnings(
         )
     elif unpositioned:
         out.append(
-            f"{len(unpositioned)} image(s) without a position were left out: {', '.join(unpositioned)}"
+            f"{len(unpositioned)} image(s) without a position were left out: {summarise_names(unpositioned)}"
         )
     if stereo.doming_risk:
         out.append(
@@ -339,6 +358,82 @@ def block_warnings(
     return out
 
 
+def _drift(frames: Frames, projection: Projection) -> str | None:
+    from .survey_frames import altitude_drift_warning
+
+    return altitude_drift_warning(
+        frames.alt_m, frames.time_utc_s, projection.median_height_m, frames.alt_reference.value
+    )
+
+
+@dataclass(frozen=True, kw_only=True)
+class Measured:
+    """What the pixels measured (:func:`measure_in_pixels`) and what the report says of it."""
+
+    figures: PixelFigures | None
+    warnings: tuple[str, ...]
+    notes: tuple[str, ...] = ()
+
+
+def measure_in_pixels(
+    frames: Frames,
+    projection: Projection,
+    stereo: StereoFigures,
+    options: PixelOptions,
+    *,
+    camera_rough: bool,
+    drift: bool,
+) -> Measured:
+    """Step 5b: match the neighbouring frames (consecutive on a line, nearest across lines) and
+    measure overlap, image scale and whether the block holds (:mod:`processing.pixel_match`)."""
+    from .pixel_match import MIN_KEYPOINTS, MIN_MATCH_SIZE_PX, measure_pixels, neighbour_pairs, scale_words
+
+    camera = frames.camera
+    if max(camera.image_width_px, camera.image_height_px) < MIN_MATCH_SIZE_PX:
+        return Measured(
+            figures=None,
+            warnings=(),
+            notes=(
+                f"frames of {camera.image_width_px}x{camera.image_height_px} px are too small to match "
+                f"(under {MIN_MATCH_SIZE_PX} px): judged on the tags alone",
+            ),
+        )
+
+    index, along = neighbour_pairs(stereo.pair_index, stereo.pair_along_line, stereo.pair_across_lines)
+    fp = projection.footprints
+    figures = measure_pixels(
+        frames,
+        pair_index=index,
+        pair_along=along,
+        camera_xyz_m=fp.camera_xyz_m,
+        tagged_gsd_cm=float(np.median(fp.gsd_cm[projection.valid])),
+        options=options,
+        mapper_pairs=stereo.pair_index,
+    )
+    warnings: list[str] = []
+    if not figures.conclusive:
+        return Measured(
+            figures=figures,
+            warnings=(
+                f"the frames carry too few features to match (median {figures.keypoints_median:.0f} SIFT "
+                f"features per frame, under {MIN_KEYPOINTS}): featureless ground (water, snow, fresh "
+                "tarmac) will not reconstruct; the verdict rests on the tags alone",
+            ),
+        )
+    said = scale_words(figures, camera_rough=camera_rough, heights_drift=drift)
+    if said is not None:
+        warnings.append(said)
+    isolated = figures.isolated
+    if isolated.size:
+        names = [frames.name[int(k)] for k in isolated]
+        warnings.append(
+            f"{len(names)} frame(s) match none of their neighbours in the pixels (turns, blur, water or "
+            f"featureless ground): {', '.join(names[:10])}"
+            + (f" and {len(names) - 10} more" if len(names) > 10 else "")
+        )
+    return Measured(figures=figures, warnings=tuple(warnings))
+
+
 # --- the pipeline --------------------------------------------------------------------------------
 
 
@@ -357,6 +452,8 @@ def run_check(
     left_out: Sequence[tuple[str, str]] = (),
     warnings: Sequence[str] = (),
     camera_source: str = "",
+    pixels: PixelOptions | None = None,
+    camera_rough: bool = False,
 ) -> CheckResult:
     """Check ``frames`` over ``ground`` (same altitude reference; see
     :func:`processing.ground_choice.ground_from_options`) and judge them against ``thresholds``.
@@ -367,7 +464,10 @@ def run_check(
     :func:`default_cell_m`). ``progress(done, total)``: called while the view counts are
     rasterized (the long part). ``notes``, ``warnings``, ``unpositioned`` (image names without a
     position) and ``left_out`` ((name, reason) of every frame not checked: no position, another
-    camera, not a survey frame) go into the report as they are.
+    camera, not a survey frame) go into the report as they are. ``pixels``: match the
+    neighbouring frames in that folder and measure overlap, scale and whether the block holds
+    (:mod:`processing.pixel_match`; None: the tags alone); ``camera_rough``: the camera is known
+    only roughly (35 mm equivalent), so a scale the pixels contradict is blamed on it.
     """
     if len(frames) == 0:
         raise ProcessingError("there is no frame to check")
@@ -377,11 +477,23 @@ def run_check(
     gaps = find_gaps(judged.xy, projection, min_area_m2=thresholds.min_gap_area_m2)
     fp, frame = projection.footprints, projection.frame
     stereo = measure_stereo(frames, fp, ground, frame, coverage.grid, coverage.in_area, thresholds)
+    drift = _drift(frames, projection)
+    measured = (
+        measure_in_pixels(
+            frames, projection, stereo, pixels, camera_rough=camera_rough, drift=drift is not None
+        )
+        if pixels is not None
+        else None
+    )
+    pixel_notes = measured.notes if measured is not None else ()
     all_warnings = [
         *warnings,
         *stereo.warnings,
         *block_warnings(frames, projection, stereo, plan=plan, unpositioned=unpositioned, left_out=left_out),
+        *(measured.warnings if measured is not None else ()),
     ]
+    pixel_figures = measured.figures if measured is not None else None
+    judged_pixels = pixel_figures if pixel_figures is not None and pixel_figures.conclusive else None
     blurred_frames = (
         [
             (frames.name[k], float(stereo.blur_px[k]))
@@ -412,6 +524,7 @@ def run_check(
         base_height_along_line=Distribution.of(stereo.pair_base_height_ratio[stereo.pair_along_line]),
         steps=stereo.steps,
         good_pair_basis=stereo.good_pair_basis,
+        pixels=judged_pixels,
     )
     all_warnings.extend(
         overlap_warnings(
@@ -419,6 +532,8 @@ def run_check(
             forward_overlap_pct=stereo.forward_overlap_pct,
             side_overlap_pct=stereo.side_overlap_pct,
             steps=stereo.steps,
+            pixels=judged_pixels,
+            base_height_along_line=Distribution.of(stereo.pair_base_height_ratio[stereo.pair_along_line]),
         )
     )
     lonlat_rings = np.stack(frame.to_lonlat(fp.xy_m[..., 0], fp.xy_m[..., 1]), axis=-1)
@@ -426,7 +541,7 @@ def run_check(
         passed=not reasons,
         reasons=reasons,
         warnings=tuple(all_warnings),
-        notes=(*notes, *stereo.notes),
+        notes=(*notes, *stereo.notes, *pixel_notes),
         thresholds=thresholds,
         frames=frames,
         frame=frame,
@@ -454,6 +569,7 @@ def run_check(
         unpositioned=tuple(unpositioned),
         left_out=tuple(left_out),
         camera_source=camera_source,
+        pixels=pixel_figures,
         stats={
             "views_median": coverage.stats["views_median"],
             "views_max": coverage.stats["views_max"],

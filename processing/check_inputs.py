@@ -40,6 +40,8 @@ class CheckInputs:
     unpositioned: tuple[str, ...] = ()
     left_out: tuple[tuple[str, str], ...] = ()
     camera_source: str = ""
+    camera_confidence: str = ""
+    image_dir: Path | None = None
 
 
 def gather_inputs(
@@ -98,6 +100,8 @@ def gather_inputs(
         unpositioned=images.unpositioned,
         left_out=(*images.left_out, *choice.left_out),
         camera_source=images.camera_source,
+        camera_confidence=images.camera_confidence,
+        image_dir=Path(source),
     )
 
 

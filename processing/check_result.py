@@ -15,6 +15,7 @@ from planner.geo import LocalFrame
 from .check_stereo import FrameFlag, StereoFigures
 from .distribution import Distribution
 from .frames import Frames
+from .pixel_match import PixelFigures
 from .plan_frames import PlanInfo
 from .verdict import Thresholds
 
@@ -78,6 +79,7 @@ class CheckResult:
     unpositioned: tuple[str, ...] = ()
     left_out: tuple[tuple[str, str], ...] = ()
     camera_source: str = ""
+    pixels: PixelFigures | None = None
     stats: dict[str, Any] = field(default_factory=dict)
 
     @property
@@ -94,6 +96,30 @@ class CheckResult:
     def gap_area_m2(self) -> float:
         return float(sum(g.area_m2 for g in self.gaps))
 
+    def output_crs(self) -> tuple[str, Any]:
+        """The one projected CRS of the check's outputs: the UTM zone that holds the area (its EPSG
+        code, as coverage.tif), else the check's own transverse Mercator frame; (name, pyproj CRS).
+        GeoJSON files are WGS84 longitude/latitude by their standard (RFC 7946)."""
+        from pyproj import CRS
+
+        from .geotiff import utm_epsg
+
+        epsg = utm_epsg(*self.area_lonlat.bounds)
+        if epsg is not None:
+            crs = CRS.from_epsg(epsg)
+            return f"EPSG:{epsg} ({crs.name})", crs
+        return f"{self.frame.crs.to_string()} (the check's transverse Mercator frame)", self.frame.crs
+
+    def extent_in_output_crs(self) -> tuple[float, float, float, float]:
+        """The grid's extent (west, south, east, north) in :meth:`output_crs`, metres."""
+        from pyproj import Transformer
+
+        _, crs = self.output_crs()
+        to_out = Transformer.from_crs(self.frame.crs, crs, always_xy=True)
+        west, south, east, north = self.extent_xy_m
+        xs, ys = to_out.transform([west, east, east, west], [south, south, north, north])
+        return (float(min(xs)), float(min(ys)), float(max(xs)), float(max(ys)))
+
     def key_figures(self) -> list[tuple[str, str]]:
         """The figures a person reads first, as (label, text) rows."""
         rows: list[tuple[str, str]] = [
@@ -104,6 +130,7 @@ class CheckResult:
             *([("camera", self.camera_source)] if self.camera_source else []),
             ("ground", self.ground_description),
             ("area", f"{self.area_m2 / 1e4:.2f} ha ({self.area_source}), cells {self.cell_m:g} m"),
+            ("CRS", f"{self.output_crs()[0]} (coverage.tif, report.json); GeoJSON in WGS84"),
             (
                 "seen by >= 1 / 3 / 5 frames",
                 " / ".join(f"{self.seen_pct[k]:.1f} %" for k in (1, 3, 5)),
@@ -148,6 +175,10 @@ class CheckResult:
                     f"{self.thresholds.min_base_height_ratio:g}-{self.thresholds.max_base_height_ratio:g}",
                 )
             )
+        if self.pixels is not None:
+            from .pixel_match import describe
+
+            rows.extend(describe(self.pixels))
         gsd = Distribution.of(self.gsd_cm)
         if gsd is not None:
             rows.append(("GSD", f"median {gsd.median:.2f} cm ({gsd.min:.2f}-{gsd.max:.2f} cm)"))
@@ -230,9 +261,11 @@ class CheckResult:
             "area": {
                 "source": self.area_source,
                 "area_m2": self.area_m2,
-                "crs": f"EPSG:{self.frame.epsg}" if self.frame.epsg else self.frame.crs.to_string(),
+                "crs": self.output_crs()[0],
                 "cell_m": self.cell_m,
-                "extent_xy_m": list(self.extent_xy_m),
+                "extent_m": list(self.extent_in_output_crs()),
+                "geojson_crs": "EPSG:4326 (WGS 84, longitude/latitude; RFC 7946)",
+                "computed_in": self.frame.crs.to_string(),
             },
             "coverage": {
                 "seen_by_at_least_pct": {str(k): v for k, v in self.seen_pct.items()},
@@ -271,6 +304,7 @@ class CheckResult:
                 "convergent_frames_pct": self.stereo.convergent_pct,
                 "doming_risk": self.stereo.doming_risk,
             },
+            "pixels": self.pixels.as_dict() if self.pixels is not None else None,
             "gsd_cm": (d.as_dict() if (d := Distribution.of(self.gsd_cm)) else None),
             "height_agl_m": (d.as_dict() if (d := Distribution.of(self.height_agl_m)) else None),
             "speed_m_s": (

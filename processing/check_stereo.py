@@ -185,6 +185,7 @@ def measure_stereo(
             interval_s=interval_s,
             spacing_m=float(np.median(pairs.base_m[across])) if across.any() else None,
             base_height_along=float(np.median(bh[along])),
+            height_m=float(np.median(fp.height_above_ground_m[fp.valid])) if fp.valid.any() else None,
         )
     return StereoFigures(
         forward_overlap_pct=Distribution.of(forward_overlaps_pct(frames, fp, lines)),

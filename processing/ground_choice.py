@@ -303,9 +303,11 @@ def _survey_frames(
         )
     left = tuple((frames.name[k], why) for k, why in selection.left_out)
     if left:
+        from .image_frames import summarise_reasons
+
         log.warning(
-            "%d frame(s) are not survey frames and are left out: %s",
+            "%d frame(s) are not survey frames and are left out (all in the report): %s",
             len(left),
-            "; ".join(f"{name}: {why}" for name, why in left),
+            summarise_reasons(left),
         )
     return selection.keep, left

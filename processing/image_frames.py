@@ -14,7 +14,7 @@ import logging
 import math
 import os
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -88,10 +88,70 @@ def read_image_frames(
     damaged is read like any other (only its metadata is needed). Raises FramesError when no
     image has a real position.
     """
-    tags, extras = read_folder_tags(folder, progress=progress)
-    return frames_from_tags(
+    tags, extras, unreadable = read_readable_tags(folder, progress=progress)
+    if not tags:
+        listed = "; ".join(f"{name} ({why})" for name, why in unreadable[:5])
+        more = f"; and {len(unreadable) - 5} more" if len(unreadable) > 5 else ""
+        raise FramesError(
+            f"{folder}: none of its {len(unreadable)} JPEG file(s) can be read ({listed}{more}); give the "
+            "folder of the survey's images"
+        )
+    result = frames_from_tags(
         tags, camera=camera, fallback_camera=fallback_camera, where=str(folder), camera_tags=extras
     )
+    if not unreadable:
+        return result
+    log.warning(
+        "%d unreadable file(s) left out: %s", len(unreadable), summarise_names([n for n, _ in unreadable])
+    )
+    return replace(result, left_out=(*unreadable, *result.left_out))
+
+
+def summarise_names(names: Sequence[str], shown: int = 10) -> str:
+    """The first ``shown`` names and how many more (a card's list fits one line)."""
+    listed = ", ".join(names[:shown])
+    return listed + (f" and {len(names) - shown} more" if len(names) > shown else "")
+
+
+def summarise_reasons(left_out: Sequence[tuple[str, str]], shown: int = 4) -> str:
+    """Reasons grouped by kind (the words before their figures in parentheses), most frequent
+    first, each with its count and one example: a card of 123 placeholder positions is one line."""
+    groups: dict[str, list[str]] = {}
+    for name, why in left_out:
+        groups.setdefault(why.split(" (", 1)[0], []).append(f"{name}: {why}")
+    ordered = sorted(groups.items(), key=lambda item: -len(item[1]))
+    parts = [f"{len(items)} x {kind}, e.g. {items[0]}" for kind, items in ordered[:shown]]
+    if len(ordered) > shown:
+        parts.append(f"{sum(len(items) for _, items in ordered[shown:])} more of other kinds")
+    return "; ".join(parts)
+
+
+def read_readable_tags(
+    folder: str | os.PathLike[str], *, progress: Callable[[int], None] | None = None
+) -> tuple[list[ImageTags], list[CameraTags], list[tuple[str, str]]]:
+    """As :func:`read_folder_tags`, but a file that cannot be read as a JPEG (empty, truncated
+    before its header, another format under a .jpg name) is left out: (tags, camera tags,
+    [(name, why)] of the files left out)."""
+    from acquisition.errors import GeotagError
+    from acquisition.exif import read_tags_and_camera
+
+    tags: list[ImageTags] = []
+    extras: list[CameraTags] = []
+    unreadable: list[tuple[str, str]] = []
+    for path in image_paths(folder):
+        try:
+            image_tags, camera_tags = read_tags_and_camera(path)
+        except (GeotagError, OSError) as error:
+            why = str(error).removeprefix(f"{path}: ")
+            if path.stat().st_size == 0:
+                why = "an empty file (0 bytes)"
+            unreadable.append((path.name, f"unreadable: {why.removesuffix('; remove it from the folder')}"))
+        else:
+            tags.append(image_tags)
+            extras.append(camera_tags)
+        if progress is not None:
+            progress(1)
+    return tags, extras, unreadable
 
 
 def read_folder_tags(
@@ -215,13 +275,12 @@ def frames_from_tags(
         log.warning(
             "%d image(s) without a real GPS position are left out of the check: %s",
             len(unpositioned),
-            ", ".join(unpositioned),
+            summarise_names(unpositioned),
         )
     if not kept:
-        reasons = sorted({why for _, why in left_out})
         raise FramesError(
             f"{where}: no GPS positions: geotag first (`sfap geotag IMAGES --log FLIGHT_LOG -o TAGGED`); "
-            f"none of the {len(tags)} images has a real position ({'; '.join(reasons)})"
+            f"none of the {len(tags)} images has a real position ({summarise_reasons(left_out)})"
         )
 
     # One camera and image size per check: the largest group; the others are listed.

@@ -79,6 +79,15 @@ CSV_LAYOUTS = (
         "PX4 vehicle_gps_position (ulog2csv): time_utc_usec (UTC us), lat, lon (1e-7 deg), alt (mm AMSL)",
     ),
     CsvLayout(
+        "px4_gps_utc_usec",
+        ("utcusec",),
+        "lat",
+        "lon",
+        "alt",
+        "PX4's GPS export as CSV: utc_usec (UTC microseconds), lat, lon (degrees, or 1e-7 degrees when "
+        "out of the degrees' range) and alt_msl or alt (m AMSL)",
+    ),
+    CsvLayout(
         "utc",
         ("timeutc",),
         "lat",
@@ -106,6 +115,9 @@ _ALIASES = {
     "altitude": "alt",
     "altamsl": "alt",
     "altitudemsl": "alt",
+    "altmsl": "alt",
+    "altitudemslm": "alt",
+    "altmslm": "alt",
     "utc": "timeutc",
     "utctime": "timeutc",
     "datetime": "timeutc",
@@ -122,7 +134,7 @@ def layout_of(header: list[str]) -> tuple[CsvLayout, dict[str, int]] | None:
     exact = {n: i for i, n in enumerate(names) if n}
     for layout in CSV_LAYOUTS:
         index = dict(exact)
-        if layout.name in ("utc", "gps_week"):
+        if layout.name in ("utc", "gps_week", "px4_gps_utc_usec"):
             for i, n in enumerate(names):
                 if n in _ALIASES and _ALIASES[n] not in index:
                     index[_ALIASES[n]] = i
@@ -151,6 +163,23 @@ def read_autopilot_csv(path: str, text: str, layout: CsvLayout, index: dict[str,
     if not len(fixes.time_utc_s):
         raise TelemetryError(f"{path}: no GPS fix in the file ({fixes.skipped} rows without one)")
     warnings: list[str] = []
+    used = {index[c] for c in (*layout.time, layout.lat, layout.lon) if c in index}
+    if layout.alt is not None and layout.alt in index:
+        used.add(index[layout.alt])
+    header = next(csv_rows(text))[1]
+    unread = [
+        h.strip()
+        for i, h in enumerate(header)
+        if i not in used and "alt" in normalize_heading(h) and not normalize_heading(h).startswith("salt")
+    ]
+    if fixes.alt_amsl_m is None and unread:
+        warnings.append(
+            f"{path}: altitude column(s) {', '.join(unread)} not read as the altitude above mean sea level "
+            f"(this layout, {layout.name}, reads {layout.alt or 'none'}): frames get no altitude from this "
+            "track; name the column alt_msl"
+        )
+    elif unread:
+        log.info("%s: column(s) %s not read (altitude from %s)", path, ", ".join(unread), layout.alt)
     if fixes.skipped:
         warnings.append(f"{path}: {fixes.skipped} rows without a GPS fix skipped")
     t_arr = fixes.time_utc_s
@@ -219,7 +248,7 @@ def _fixes_by_column(layout: CsvLayout, index: dict[str, int], text: str) -> _Fi
                 _floats(column_cells(rows, index[week])), _floats(column_cells(rows, index[ms]))
             )
         elif layout.name.startswith("px4"):
-            usec = column("timeutcusec")
+            usec = column(layout.time[0])
             has_time = ~(usec <= 0)
             keep(has_time)
             t = usec[has_time] / 1e6
@@ -231,6 +260,9 @@ def _fixes_by_column(layout: CsvLayout, index: dict[str, int], text: str) -> _Fi
         )
         if layout.name == "px4_vehicle_gps_position":
             lat, lon = lat * DEG_PER_E7, lon * DEG_PER_E7
+        elif layout.name == "px4_gps_utc_usec":
+            e7 = (np.abs(lat) > 90.0) | (np.abs(lon) > 180.0)
+            lat, lon = np.where(e7, lat * DEG_PER_E7, lat), np.where(e7, lon * DEG_PER_E7, lon)
         has_position = ~((lat == 0.0) & (lon == 0.0))
         keep(has_position)
         t, lat, lon = t[has_position], lat[has_position], lon[has_position]
@@ -278,7 +310,7 @@ def _fixes_by_row(path: str, layout: CsvLayout, index: dict[str, int], text: str
                 elif layout.name == "gps_week":
                     t = float(gps_week_ms_to_utc_s(float(cell("gpsweek")), float(cell("gpsms"))))
                 elif layout.name.startswith("px4"):
-                    usec = float(cell("timeutcusec"))
+                    usec = float(cell(layout.time[0]))
                     if usec <= 0:
                         skipped += 1
                         continue
@@ -287,7 +319,9 @@ def _fixes_by_row(path: str, layout: CsvLayout, index: dict[str, int], text: str
                     t = utc_cell(cell("timeutc"))
                 column = layout.lat
                 lat, lon = float(cell(layout.lat)), float(cell(layout.lon))
-                if layout.name == "px4_vehicle_gps_position":
+                if layout.name == "px4_vehicle_gps_position" or (
+                    layout.name == "px4_gps_utc_usec" and (abs(lat) > 90.0 or abs(lon) > 180.0)
+                ):
                     lat, lon = lat * DEG_PER_E7, lon * DEG_PER_E7
                 if lat == 0.0 and lon == 0.0:
                     skipped += 1

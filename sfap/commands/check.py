@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import dataclasses
+import shutil
+import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
@@ -11,11 +13,12 @@ import click
 from planner.area import build_area, load_polygons
 from planner.outputs import check_output_dir
 from planner.plan_folder import is_plan_folder
-from processing.check import run_check
+from processing.check import MAX_CELL_M, MIN_CELL_M, run_check
 from processing.check_inputs import gather_inputs
 from processing.check_result import CheckResult
 from processing.errors import ProcessingError
-from processing.image_tags import camera_option
+from processing.image_tags import CameraConfidence, camera_option
+from processing.pixel_match import DEFAULT_MATCH_SIZE_PX, PixelOptions
 from processing.verdict import Thresholds
 
 from ..common import dumps_json, echo_table, json_option, overwrite_option, progress
@@ -96,9 +99,10 @@ def _thresholds(values: tuple[str, ...]) -> Thresholds:
 )
 @click.option(
     "--cell-m",
-    type=float,
+    type=click.FloatRange(min=MIN_CELL_M, max=MAX_CELL_M),
     default=None,
-    help="Raster cell size, metres (default: 1/50 of a frame's short side, rounded).",
+    help=f"Raster cell size, metres, {MIN_CELL_M:g}-{MAX_CELL_M:g} (default: 1/50 of a frame's short side, "
+    "rounded).",
 )
 @click.option(
     "--threshold",
@@ -108,6 +112,21 @@ def _thresholds(values: tuple[str, ...]) -> Thresholds:
     help="Change a pass threshold, e.g. --threshold min_seen_3_pct=80 (repeatable; keys: "
     + ", ".join(_THRESHOLD_KEYS)
     + ").",
+)
+@click.option(
+    "--pixels/--no-pixels",
+    default=True,
+    help="Match neighbouring frames in the images (SIFT and COLMAP's matcher on downscaled frames, about "
+    "a second per frame on two cores) and judge the block on what they show: the share of neighbours "
+    "that match, the parts they form, the measured overlap and image scale (default: on for images; "
+    "COLMAP's log goes to colmap-match.log in the report folder).",
+)
+@click.option(
+    "--match-size-px",
+    type=click.IntRange(min=64, max=8192),
+    default=DEFAULT_MATCH_SIZE_PX,
+    show_default=True,
+    help="Longer side of the frames as matched, pixels (larger: slower, more features).",
 )
 @click.option("--refly", is_flag=True, help="Also write a mission covering the gaps into REPORT/refly/.")
 @click.option(
@@ -132,6 +151,8 @@ def command(
     camera_id: str | None,
     cell_m: float | None,
     threshold_items: tuple[str, ...],
+    pixels: bool,
+    match_size_px: int,
     refly: bool,
     out_dir: Path | None,
     overwrite: bool,
@@ -177,6 +198,21 @@ def command(
     area = None
     if area_file is not None:
         area, _ = build_area(load_polygons(area_file), [])
+    pixel_options = None
+    match_log: Path | None = None
+    if pixels and inputs.image_dir is not None:
+        with tempfile.NamedTemporaryFile(prefix="sfap-colmap-match-", suffix=".log", delete=False) as handle:
+            match_log = Path(handle.name)
+        pixel_options = PixelOptions(
+            image_dir=inputs.image_dir, max_image_size_px=match_size_px, log_path=match_log
+        )
+        if show_progress:
+            click.echo(
+                "matching neighbouring frames in the pixels (about a second per frame; --no-pixels to "
+                "skip); "
+                f"COLMAP's log: {match_log}",
+                err=True,
+            )
     with progress("counting views", 100, enabled=show_progress) as advance:
         result = run_check(
             inputs.frames,
@@ -192,6 +228,8 @@ def command(
             left_out=inputs.left_out,
             warnings=inputs.warnings,
             camera_source=inputs.camera_source,
+            pixels=pixel_options,
+            camera_rough=inputs.camera_confidence == CameraConfidence.EQUIVALENT_35MM.value,
         )
     refly_plan = None
     if refly and result.gaps:
@@ -202,7 +240,12 @@ def command(
         from processing.report import write_report
 
         write_report(result, out_dir, overwrite=overwrite, refly=refly_plan)
+        if match_log is not None:
+            shutil.move(match_log, out_dir / "colmap-match.log")
+            match_log = out_dir / "colmap-match.log"
     _present(result, out_dir, refly, refly_plan is not None, as_json)
+    if match_log is not None and not as_json:
+        click.echo(f"COLMAP's log of the matching: {match_log}", err=True)
     return result  # sfap.cli exits 1 when it did not pass
 
 

@@ -1045,3 +1045,91 @@ def test_simulated_flight_with_a_nadir_gimbal_keeps_the_heading(tmp_path: Path) 
         assert abs(frame.pitch_deg) < 1e-6 and abs(frame.roll_deg) < 1e-6
         checked += 1
     assert checked > 0.8 * len(shots)
+
+
+# --- sync points without camera events (acquisition/geotag_offset.sync_offset_by_track) -------------
+
+
+def _line_track(
+    t0: float, *, seconds: int = 120, speed_m_s: float = 10.0, back_and_forth: bool = False
+) -> FlightLog:
+    """A track due east from (47.0 N, 8.0 E) at ``speed_m_s``, 1 Hz; with ``back_and_forth`` it
+    turns at half time and flies back over the same ground (each place passed twice)."""
+    frame = LocalFrame.utm_for(8.0, 47.0)
+    x0, y0 = frame.to_xy(8.0, 47.0)
+    t = np.arange(seconds, dtype=np.float64)
+    half = seconds / 2.0
+    x = speed_m_s * (np.where(t <= half, t, seconds - t) if back_and_forth else t)
+    lon, lat = frame.to_lonlat(float(x0) + x, np.full_like(x, float(y0)))
+    positions = PositionTrack(
+        time_utc_s=t0 + t, lat_deg=np.asarray(lat, float), lon_deg=np.asarray(lon, float), source="test"
+    )
+    return FlightLog(path="track.csv", format="csv", positions=positions)
+
+
+def test_a_sync_time_gives_the_camera_clock_minus_utc() -> None:
+    """--sync FRAME=TIME without camera events: the offset is the camera's capture time minus the
+    UTC time the crew gave, so that UTC = capture - offset places the frame at the time given."""
+    from acquisition.geotag_offset import sync_offset_by_track
+    from acquisition.sync_points import SyncPoint
+
+    t0 = 1_700_000_000.0
+    log = _line_track(t0)
+    utc = t0 + 40.0
+    capture = utc + 3600.0 + 7.5  # the camera an hour and 7.5 s ahead of UTC
+    offset = sync_offset_by_track([(SyncPoint(frame="IMG_1.JPG", time_utc_s=utc), capture)], log)
+    assert offset == pytest.approx(3607.5)
+    assert capture - offset == pytest.approx(utc)
+
+
+def test_a_sync_position_gives_the_time_the_track_passes_it() -> None:
+    """--sync-position on a single pass: the offset is capture time minus the time the track is
+    nearest the position (10 m/s due east: 300 m east is 30 s after the start)."""
+    from acquisition.geotag_offset import sync_offset_by_track
+    from acquisition.sync_points import SyncPoint
+
+    t0 = 1_700_000_000.0
+    log = _line_track(t0)
+    frame = LocalFrame.utm_for(8.0, 47.0)
+    x0, y0 = frame.to_xy(8.0, 47.0)
+    lon, lat = frame.to_lonlat(float(x0) + 300.0, float(y0))
+    point = SyncPoint(frame="IMG_2.JPG", lat_deg=float(lat), lon_deg=float(lon))
+    offset = sync_offset_by_track([(point, t0 + 30.0 - 2.0)], log)
+    assert offset == pytest.approx(-2.0, abs=0.05)
+
+
+def test_a_sync_position_passed_twice_is_refused() -> None:
+    """A flight that passes a sync position twice (out and back over it) cannot say which pass
+    took the frame: refused, naming both passes, nothing guessed."""
+    from acquisition.geotag_offset import sync_offset_by_track
+    from acquisition.sync_points import SyncPoint
+
+    t0 = 1_700_000_000.0
+    log = _line_track(t0, back_and_forth=True)
+    frame = LocalFrame.utm_for(8.0, 47.0)
+    x0, y0 = frame.to_xy(8.0, 47.0)
+    lon, lat = frame.to_lonlat(float(x0) + 200.0, float(y0))
+    point = SyncPoint(frame="IMG_3.JPG", lat_deg=float(lat), lon_deg=float(lon))
+    with pytest.raises(GeotagError, match=r"passes the sync position of IMG_3\.JPG 2 times"):
+        sync_offset_by_track([(point, t0 + 20.0)], log)
+
+
+def test_frames_on_the_track_samples_keep_the_track_speed() -> None:
+    """A track sampled at the frames themselves (every time within 1 ms of a sample): each frame
+    takes its sample's position, and its speed from the interval beside it, not 0."""
+    t0 = 1_700_000_000.0
+    log = _line_track(t0, seconds=20, speed_m_s=12.0)
+    assert log.positions is not None
+    times = log.positions.time_utc_s[[0, 5, 10, 19]] + np.array([0.0, 0.0004, -0.0009, 0.0])
+    result = interpolation.interpolate_poses(times, positions=log.positions)
+    for k, pose in enumerate(result.poses):
+        assert pose is not None
+        assert pose.speed_m_s == pytest.approx(12.0, rel=1e-3)
+        assert pose.position_gap_s == 0.0
+        sample = [0, 5, 10, 19][k]
+        assert (
+            geodesic_distance_m(
+                pose.lat_deg, pose.lon_deg, log.positions.lat_deg[sample], log.positions.lon_deg[sample]
+            )
+            < 0.02
+        )

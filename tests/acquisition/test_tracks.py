@@ -444,3 +444,49 @@ def test_autopilot_fixes_by_column_are_the_fixes_by_row(text: str) -> None:
         assert (
             by_column.alt_amsl_m is not None and by_column.alt_amsl_m.tobytes() == by_row.alt_amsl_m.tobytes()
         )
+
+
+# --- PX4's gps.csv (utc_usec) and a CSV's alt_msl column ----------------------------------------------
+
+
+def test_px4_gps_csv_with_utc_usec_and_alt_msl_is_read(tmp_path: Path) -> None:
+    """PX4's GPS export (utc_usec, lat, lon in degrees, alt_msl): every row's time, position and
+    altitude as written, by hand (1700000005.2 s is 2023-11-14T22:13:25.2Z)."""
+    path = tmp_path / "gps.csv"
+    path.write_text(
+        "utc_usec,lat,lon,alt_msl,satellites_used\n"
+        "1700000005200000,47.1234567,8.7654321,512.5,14\n"
+        "1700000006200000,47.1235567,8.7655321,513.0,14\n"
+        "0,0,0,0,0\n"
+    )
+    log = read_log(path)
+    assert log.positions is not None
+    np.testing.assert_array_equal(log.positions.time_utc_s, [1700000005.2, 1700000006.2])
+    np.testing.assert_array_equal(log.positions.lat_deg, [47.1234567, 47.1235567])
+    np.testing.assert_array_equal(log.positions.lon_deg, [8.7654321, 8.7655321])
+    assert log.positions.alt_amsl_m is not None
+    np.testing.assert_array_equal(log.positions.alt_amsl_m, [512.5, 513.0])
+    # The same in PX4's integer units (1e-7 degrees) reads as the same degrees.
+    e7 = tmp_path / "gps_e7.csv"
+    e7.write_text("utc_usec,lat,lon,alt_msl\n1700000005200000,471234567,87654321,512.5\n")
+    track = read_log(e7).positions
+    assert track is not None
+    assert track.lat_deg[0] == pytest.approx(47.1234567, abs=1e-9)
+    assert track.lon_deg[0] == pytest.approx(8.7654321, abs=1e-9)
+
+
+def test_a_utc_track_reads_its_alt_msl_column(tmp_path: Path) -> None:
+    path = tmp_path / "track.csv"
+    path.write_text("time_utc,lat,lon,alt_msl\n2026-11-22T10:00:00Z,42.0,-1.5,350.25\n")
+    track = read_log(path).positions
+    assert track is not None and track.alt_amsl_m is not None
+    assert track.alt_amsl_m.tolist() == [350.25]
+
+
+def test_an_altitude_column_the_layout_cannot_read_is_said(tmp_path: Path) -> None:
+    """An altitude column under a name no layout reads is not dropped silently: the log says so."""
+    path = tmp_path / "track.csv"
+    path.write_text("time_utc,lat,lon,alt_baro_ft\n2026-11-22T10:00:00Z,42.0,-1.5,1150\n")
+    log = read_log(path)
+    assert log.positions is not None and log.positions.alt_amsl_m is None
+    assert any("alt_baro_ft" in w and "no altitude" in w for w in log.warnings), log.warnings

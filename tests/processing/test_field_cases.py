@@ -87,6 +87,7 @@ def check(folder: Path, *args: str) -> tuple[int, str]:
             "--ground-elevation-m",
             str(GROUND_M),
             "--no-progress",
+            "--no-pixels",  # these cases are about reading the tags (the pixels: test_pixel_match.py)
             *OVERLAP_RELAXED,
             *args,
         ],

@@ -157,16 +157,17 @@ def test_unmeasured_forward_overlap_is_said() -> None:
     assert len(warnings) == 1 and warnings[0].startswith("forward overlap not measured")
 
 
-def test_the_advice_gives_the_trigger_distance_and_speed_for_the_recommended_endlap() -> None:
+def test_the_advice_gives_the_trigger_distance_and_interval_for_the_recommended_endlap() -> None:
     """Eq. 3-5 and 3-6 (REFERENCES.md section 1), by hand: 60 m between frames at 40 % endlap is a
-    100 m footprint along the track; 75 % endlap needs a base of 25 m, and at the same 5 s interval
-    5 m/s instead of 12. 72 m between lines at 28 % side overlap is a 100 m wide footprint: 60 %
+    100 m footprint along the track; 75 % endlap needs a base of 25 m, and at the same speed an
+    interval of 25 / 60 x 5 s = 2.1 s; never a lower speed (a fixed wing cannot fly below its
+    minimum). 72 m between lines at 28 % side overlap is a 100 m wide footprint: 60 %
     needs lines 40 m apart. B/H 0.675 at 60 m: B/H 0.54 needs 48 m; the intersection angle is
     2 atan(B / 2H)."""
     steps = LineSteps(base_m=60.0, interval_s=5.0, spacing_m=72.0)
     forward = _judge(forward_overlap_pct=_flat(40.0), steps=steps)
     assert "trigger distance of at most 25.0 m (now 60.0 m)" in forward[0]
-    assert "ground speed of at most 5.0 m/s (now 12.0 m/s)" in forward[0]
+    assert "trigger interval of at most 2.1 s (now 5.0 s)" in forward[0] and "m/s" not in forward[0]
     side = overlap_warnings(
         thresholds=T, forward_overlap_pct=_flat(80.0), side_overlap_pct=_flat(28.0), steps=steps
     )
@@ -190,3 +191,71 @@ def test_good_base_height_range_includes_both_ends() -> None:
     lo, hi = T.min_base_height_ratio, T.max_base_height_ratio
     values = np.array([lo - EPS, lo, lo + EPS, hi - EPS, hi, hi + EPS])
     np.testing.assert_array_equal(good_base_height(values, T), [False, True, True, True, True, False])
+
+
+# --- what the pixels say (processing/pixel_match.PixelFigures) -------------------------------------
+
+
+def _pixels(*, connected: int, registered: int | None, forward_pct: float = 50.0, n: int = 100) -> Any:
+    """Figures of ``n`` frames along one line: the first ``connected`` matched into one part, a quick
+    reconstruction whose largest model registers the first ``registered`` (None: not run), every
+    matched pair with ``forward_pct`` overlap."""
+    from processing.pixel_match import PixelFigures
+
+    pair_index = np.column_stack([np.arange(n - 1), np.arange(1, n)]).astype(np.int64)
+    matched = np.arange(n - 1) < connected - 1
+    component = np.concatenate([np.zeros(connected), np.arange(1, n - connected + 1)]).astype(np.int64)
+    return PixelFigures(
+        pair_index=pair_index,
+        pair_along=np.ones(n - 1, dtype=bool),
+        inliers=np.where(matched, 200, 0).astype(np.int64),
+        matched=matched,
+        overlap_pct=np.where(matched, forward_pct, np.nan),
+        shift_px=np.full(n - 1, np.nan),
+        gsd_cm=np.full(n - 1, np.nan),
+        component=component,
+        frame_count=n,
+        match_size_px=640,
+        seconds=1.0,
+        tagged_gsd_cm=None,
+        focal_px=1000.0,
+        models=None if registered is None else (tuple(range(registered)),),
+    )
+
+
+def test_an_endlap_under_60_is_advice_when_the_pixels_say_the_block_holds() -> None:
+    """53 % endlap whose frames all match and reconstruct (seneca_half's case): no failure, and the
+    advice names the measured overlap and a trigger distance, never a speed."""
+    steps = LineSteps(base_m=30.0, interval_s=4.0, spacing_m=40.0, height_m=60.0)
+    pixels = _pixels(connected=100, registered=100, forward_pct=53.0)
+    fwd = _flat(45.0)
+    assert _judge(forward_overlap_pct=fwd, pixels=pixels, steps=steps) == ()
+    advice = overlap_warnings(
+        thresholds=T, forward_overlap_pct=fwd, side_overlap_pct=None, steps=steps, pixels=pixels
+    )
+    assert len(advice) == 1 and "53 % measured in the pixels (from the tags 45 %)" in advice[0]
+    # 75 % endlap from 53 %: the base shrinks by (1 - 0.75) / (1 - 0.53); the height grows by its inverse.
+    factor = 0.25 / 0.47
+    assert f"trigger distance of at most {30.0 * factor:.1f} m (now 30.0 m)" in advice[0]
+    assert f"height of at least {60.0 / factor:.0f} m" in advice[0]
+    assert "m/s" not in advice[0]
+    # Without the pixels the classical floor fails it.
+    assert any(
+        "below the 60 % a stereo block needs" in r for r in _judge(forward_overlap_pct=fwd, steps=steps)
+    )
+
+
+@pytest.mark.parametrize(("delta", "fails"), [(-1, True), (0, False), (1, False)])
+def test_the_quick_reconstruction_must_register_enough_frames(delta: int, fails: bool) -> None:
+    registered = int(T.min_registered_pct) + delta  # of 100 frames: the share in percent
+    reasons = _judge(pixels=_pixels(connected=100, registered=registered), forward_overlap_pct=_flat(50.0))
+    assert any("quick reconstruction" in r for r in reasons) is fails
+    # A block that falls apart still fails on its endlap too (the advice is then a failure).
+    assert any("below the 60 % a stereo block needs" in r for r in reasons) is fails
+
+
+@pytest.mark.parametrize(("delta", "fails"), [(-1, True), (0, False), (1, False)])
+def test_the_matched_frames_must_hold_together(delta: int, fails: bool) -> None:
+    connected = int(T.min_connected_frames_pct) + delta
+    reasons = _judge(pixels=_pixels(connected=connected, registered=None))
+    assert any("separate parts" in r for r in reasons) is fails

@@ -1,0 +1,186 @@
+"""What the pixels say (processing/pixel_match.py, processing/pixel_colmap.py): the geometry of a
+matched pair against constructions whose answer is known, and COLMAP's real matcher on images
+cut from one texture at known offsets."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from PIL import Image
+
+from processing.pixel_match import (
+    affine_fit,
+    components,
+    mapped_overlap_pct,
+    neighbour_pairs,
+)
+
+
+@settings(max_examples=50, deadline=None)
+@given(
+    st.floats(-0.5, 0.5),
+    st.floats(0.8, 1.25),
+    st.floats(-400, 400),
+    st.floats(-400, 400),
+    st.integers(0, 2**31 - 1),
+)
+def test_the_affine_fit_recovers_a_similarity(
+    angle: float, scale: float, tx: float, ty: float, seed: int
+) -> None:
+    rng = np.random.default_rng(seed)
+    xy = rng.uniform(0, 1000, size=(40, 2))
+    c, s = scale * np.cos(angle), scale * np.sin(angle)
+    truth = np.array([[c, -s, tx], [s, c, ty]])
+    moved = xy @ truth[:, :2].T + truth[:, 2]
+    np.testing.assert_allclose(affine_fit(xy, moved), truth, atol=1e-6)
+
+
+@pytest.mark.parametrize(
+    ("dx", "dy"), [(0.0, 0.0), (400.0, 0.0), (0.0, -300.0), (250.0, 150.0), (1200.0, 0.0)]
+)
+def test_a_shifted_frame_overlaps_by_the_rest_of_it(dx: float, dy: float) -> None:
+    """A 1000 x 750 px frame shifted by (dx, dy): the overlap is (1000 - |dx|)(750 - |dy|) of it."""
+    affine = np.array([[1.0, 0.0, dx], [0.0, 1.0, dy]])
+    expected = 100.0 * max(1000 - abs(dx), 0) * max(750 - abs(dy), 0) / (1000 * 750)
+    assert mapped_overlap_pct(affine, (1000, 750), (1000, 750)) == pytest.approx(expected, abs=1e-9)
+
+
+def _components_by_search(n: int, edges: list[tuple[int, int]]) -> list[set[int]]:
+    """Connected parts by breadth-first search (the oracle)."""
+    neighbours: dict[int, set[int]] = {k: set() for k in range(n)}
+    for a, b in edges:
+        neighbours[a].add(b)
+        neighbours[b].add(a)
+    seen: set[int] = set()
+    parts: list[set[int]] = []
+    for start in range(n):
+        if start in seen:
+            continue
+        part, queue = {start}, [start]
+        while queue:
+            for nxt in neighbours[queue.pop()]:
+                if nxt not in part:
+                    part.add(nxt)
+                    queue.append(nxt)
+        seen |= part
+        parts.append(part)
+    return parts
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.integers(1, 30), st.lists(st.tuples(st.integers(0, 29), st.integers(0, 29)), max_size=40))
+def test_components_are_the_connected_parts_largest_first(n: int, raw: list[tuple[int, int]]) -> None:
+    edges = [(a, b) for a, b in raw if a < n and b < n]
+    labels = components(n, np.array(edges, dtype=np.int64).reshape(-1, 2))
+    parts = _components_by_search(n, edges)
+    assert {frozenset(np.flatnonzero(labels == k).tolist()) for k in range(labels.max() + 1)} == {
+        frozenset(p) for p in parts
+    }
+    sizes = np.bincount(labels)
+    assert (np.diff(sizes) <= 0).all() and sizes[0] == max(len(p) for p in parts)
+
+
+def test_neighbour_pairs_keep_along_and_across_pairs_once() -> None:
+    index = np.array([[0, 1], [1, 2], [2, 0], [3, 1], [1, 3]], dtype=np.int64)
+    along = np.array([True, True, False, False, False])
+    across = np.array([False, False, False, True, True])
+    pairs, kind = neighbour_pairs(index, along, across)
+    assert pairs.tolist() == [[0, 1], [1, 2], [1, 3]]
+    assert kind.tolist() == [True, True, False]
+
+
+# --- COLMAP's matcher on a texture cut at known offsets --------------------------------------------
+
+
+def _texture(width: int, height: int, seed: int) -> np.ndarray:
+    """Blobs at several scales (features SIFT finds at every octave), 8-bit grey."""
+    rng = np.random.default_rng(seed)
+    image = np.zeros((height, width))
+    for cell in (4, 9, 23, 61):
+        coarse = rng.normal(size=(height // cell + 2, width // cell + 2))
+        up = np.kron(coarse, np.ones((cell, cell)))[:height, :width]
+        image += up
+    image -= image.min()
+    return (255 * image / image.max()).astype(np.uint8)
+
+
+def test_colmap_measures_the_overlap_and_shift_of_frames_cut_from_one_texture(tmp_path: Path) -> None:
+    """Three 800 x 600 frames cut from one texture, each 240 px right of the last (70 % endlap),
+    and one cut from another texture: the neighbours match with the shift and overlap of their
+    construction, the unrelated frame matches nothing."""
+    from processing.pixel_colmap import match_pairs
+
+    texture = _texture(2000, 600, seed=1)
+    names = []
+    for k in range(3):
+        name = f"f{k}.jpg"
+        Image.fromarray(texture[:, 240 * k : 240 * k + 800]).save(tmp_path / name, quality=95)
+        names.append(name)
+    Image.fromarray(_texture(800, 600, seed=2)).save(tmp_path / "other.jpg", quality=95)
+    names.append("other.jpg")
+    log = tmp_path / "colmap.log"
+    run = match_pairs(
+        tmp_path,
+        names,
+        [("f0.jpg", "f1.jpg"), ("f1.jpg", "f2.jpg"), ("f0.jpg", "f2.jpg"), ("f1.jpg", "other.jpg")],
+        max_image_size_px=800,
+        max_features=2000,
+        num_threads=2,
+        log_path=log,
+    )
+    assert run.size_px["f0.jpg"] == (800, 600)
+    counts = [p.count for p in run.pairs]
+    assert min(counts[:3]) >= 100 and counts[3] < 15, counts
+    for pair, shift in zip(run.pairs[:3], (240.0, 240.0, 480.0), strict=True):
+        affine = affine_fit(pair.xy_a, pair.xy_b)
+        centre = np.array([400.0, 300.0])
+        np.testing.assert_allclose(affine[:, :2] @ centre + affine[:, 2] - centre, [-shift, 0.0], atol=3.0)
+        assert mapped_overlap_pct(affine, (800, 600), (800, 600)) == pytest.approx(
+            100 * (1 - shift / 800), abs=0.3
+        )
+    # COLMAP's log went to the file, not the terminal.
+    assert log.stat().st_size > 0
+
+
+def _figures(measured_gsd_cm: float, tagged_gsd_cm: float, focal_px: float) -> object:
+    from processing.pixel_match import PixelFigures
+
+    n = 5
+    return PixelFigures(
+        pair_index=np.column_stack([np.arange(n - 1), np.arange(1, n)]).astype(np.int64),
+        pair_along=np.ones(n - 1, dtype=bool),
+        inliers=np.full(n - 1, 500, dtype=np.int64),
+        matched=np.ones(n - 1, dtype=bool),
+        overlap_pct=np.full(n - 1, 60.0),
+        shift_px=np.full(n - 1, 400.0),
+        gsd_cm=np.full(n - 1, measured_gsd_cm),
+        component=np.zeros(n, dtype=np.int64),
+        frame_count=n,
+        match_size_px=640,
+        seconds=1.0,
+        tagged_gsd_cm=tagged_gsd_cm,
+        focal_px=focal_px,
+        keypoints_median=2000.0,
+    )
+
+
+def test_a_rough_camera_the_pixels_contradict_is_called_unknown_with_the_measured_focal_length() -> None:
+    """A zoom camera known from its 35 mm equivalent: 6,381 px assumed, the tags' GSD 1.10 cm, the
+    pixels 2.41 cm. With the heights right the focal length is 6381 x 1.10 / 2.41 = 2912 px."""
+    from processing.pixel_match import scale_words
+
+    figures = _figures(2.41, 1.10, 6381.0)
+    said = scale_words(figures, camera_rough=True, heights_drift=False)  # type: ignore[arg-type]
+    assert said is not None
+    assert "focal length is unknown, measured 2912 px" in said and "6381 px" in said
+    assert "+119 %" in said  # 2.41 / 1.10 - 1
+    drift = scale_words(figures, camera_rough=False, heights_drift=True)  # type: ignore[arg-type]
+    assert drift is not None and "heights above ground are taken from the image scale" in drift
+    # Height from the measured scale: 2.41 cm x 6381 px = 153.8 m.
+    assert "median 153.8 m" in drift
+    # Within 15 % nothing is said.
+    assert scale_words(_figures(1.20, 1.10, 6381.0), camera_rough=True, heights_drift=False) is None  # type: ignore[arg-type]
