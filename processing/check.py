@@ -399,6 +399,16 @@ def measure_in_pixels(
             ),
         )
 
+    try:
+        import pycolmap  # noqa: F401  (the matcher's engine: an optional dependency, sfap[colmap])
+    except ModuleNotFoundError:
+        return Measured(
+            figures=None,
+            warnings=(
+                "pycolmap is not installed, so the frames were not matched: the verdict rests on the tags "
+                "alone (install it with `pip install 'sfap[colmap]'`, or pass --no-pixels to say so)",
+            ),
+        )
     index, along = neighbour_pairs(stereo.pair_index, stereo.pair_along_line, stereo.pair_across_lines)
     fp = projection.footprints
     figures = measure_pixels(

@@ -184,3 +184,27 @@ def test_a_rough_camera_the_pixels_contradict_is_called_unknown_with_the_measure
     assert "median 153.8 m" in drift
     # Within 15 % nothing is said.
     assert scale_words(_figures(1.20, 1.10, 6381.0), camera_rough=True, heights_drift=False) is None  # type: ignore[arg-type]
+
+
+def test_without_pycolmap_the_check_says_it_judged_on_the_tags(monkeypatch: pytest.MonkeyPatch) -> None:
+    """pycolmap is an optional dependency (sfap[colmap]): a check where it is not installed does
+    not end in a traceback; it says the frames were not matched and how to install it."""
+    import sys
+    from types import SimpleNamespace
+
+    from processing.check import measure_in_pixels
+    from processing.pixel_match import PixelOptions
+
+    monkeypatch.setitem(sys.modules, "pycolmap", None)  # `import pycolmap` now fails as if absent
+    frames = SimpleNamespace(camera=SimpleNamespace(image_width_px=4000, image_height_px=3000))
+    measured = measure_in_pixels(
+        frames,  # type: ignore[arg-type]
+        None,  # type: ignore[arg-type]
+        None,  # type: ignore[arg-type]
+        PixelOptions(image_dir=Path(".")),
+        camera_rough=False,
+        drift=False,
+    )
+    assert measured.figures is None
+    assert len(measured.warnings) == 1 and "pycolmap is not installed" in measured.warnings[0]
+    assert "sfap[colmap]" in measured.warnings[0]
