@@ -91,6 +91,13 @@ def handoff(
         raise HandoffInputError(f"--run runs COLMAP only; drop --run for --to {options.engine.value}")
     if not (200 <= options.max_image_size_px <= 20000):
         raise HandoffInputError(f"--max-image-size-px {options.max_image_size_px} is outside 200..20000")
+    address = None
+    if options.engine is Engine.NODEODM:
+        from .nodeodm import parse_node_url
+
+        if options.node_url is None:
+            raise HandoffInputError("--to nodeodm needs the node's address: nodeodm://HOST:PORT")
+        address = parse_node_url(options.node_url)  # a bad address is refused before any work
     check_output_dir(work, overwrite=options.overwrite)
     say = progress or (lambda text: None)
     say("reading the frames")
@@ -158,11 +165,10 @@ def handoff(
                         t for t in (table_3_2(acc), distances_text(distances)) if t
                     )
         elif options.engine is Engine.NODEODM:
-            from .nodeodm import parse_node_url, run_on_node
+            from .nodeodm import run_on_node
             from .odm import GCP_TXT, GEO_TXT, write_odm_project
 
-            assert options.node_url is not None
-            address = parse_node_url(options.node_url)
+            assert address is not None
             say("writing the ODM project")
             report["odm"] = write_odm_project(prepared.block, prepared.pairs, gcps, stage)
             files = [stage / "images" / n for n in prepared.block.names]
@@ -187,6 +193,7 @@ def handoff(
 
             say(f"writing the {options.engine.value} reference files")
             report[options.engine.value] = write_reference(prepared.block, gcps, stage, options.engine.value)
+            passed = bool(report[options.engine.value]["complete"])  # no camera positions: exit 1
         (stage / "report.json").write_text(write_json(report), encoding="utf-8")
         if options.engine is Engine.COLMAP:
             (stage / "report.html").write_text(report_html(report, quick), encoding="utf-8")

@@ -113,7 +113,7 @@ def command(
 
     Exit code 0 done, 1 the block did not reconstruct (--run) or an engine failed, 2 bad input.
 
-    Example: sfap handoff photos/ --to colmap --ground-elevation-m 258 --run -o work/
+    Example: sfap handoff photos/ --to colmap --run -o work/
     """
     start = time.perf_counter()
 
@@ -190,6 +190,12 @@ def _present(result: HandoffResult, as_json: bool) -> None:
     engine_notes = [n for key in ("odm", "metashape", "pix4d") for n in report.get(key, {}).get("notes", [])]
     for note in [*project["notes"], *engine_notes]:
         click.echo(f"note: {note}", err=True)
+    for key in ("metashape", "pix4d"):
+        if key in report and not report[key]["complete"]:
+            click.echo(
+                f"FAIL: no image has a position, so the {key} project has no camera positions; "
+                f"written: {', '.join(report[key]['files'])}"
+            )
     if ql:
         for message in ql["messages"]:
             click.echo(f"warning: {message}", err=True)

@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import json
 import math
+import statistics
 from pathlib import Path
 
 import exifread
 import pytest
 from click.testing import CliRunner
-from handoff_grid import HEIGHT_M, grid
+from handoff_grid import FOOT_X_M, FOOT_Y_M, HEIGHT_M, grid
 from pyproj import CRS
 
 from sfap.cli import cli
@@ -103,11 +104,44 @@ def test_odm_project_has_what_odm_reads(tmp_path: Path, block) -> None:  # type:
     assert CRS.from_user_input(gcp_lines[0]).to_epsg() == 4326
     assert len(gcp_lines) == 1 + 6
     options = {o["name"]: o["value"] for o in json.loads((work / "options.json").read_text())}
-    assert options["gps-accuracy"] == 1.5
+    # No --gps-accuracy: ODM would force that one figure on every image over geo.txt's own.
+    assert "gps-accuracy" not in options
     assert options["camera-lens"] == "brown"
-    assert 4 <= options["matcher-neighbors"] <= len(frames) - 1
+    # matcher-neighbors: the median number of frames whose nadir footprint (FOOT_X_M x FOOT_Y_M
+    # rectangles over flat ground) overlaps a frame's by 5 % or more, counted here from the grid.
+    partners = [
+        sum(
+            1
+            for other in frames
+            if other is not f
+            and max(0.0, FOOT_X_M - abs(f[1] - other[1])) * max(0.0, FOOT_Y_M - abs(f[2] - other[2]))
+            >= 0.05 * FOOT_X_M * FOOT_Y_M
+        )
+        for f in frames
+    ]
+    assert options["matcher-neighbors"] == math.ceil(statistics.median(partners))
+    assert options["matcher-neighbors"] < len(frames) - 1
     args = (work / "odm_args.txt").read_text()
-    assert "--gps-accuracy 1.5" in args and "--gcp gcp_list.txt" in args
+    assert "--gps-accuracy" not in args and "--gcp gcp_list.txt" in args
+
+
+def test_odm_leaves_matcher_neighbors_to_odm_when_every_frame_overlaps_every_other(
+    tmp_path: Path,
+) -> None:
+    grid(tmp_path / "img", lines=1, per_line=4, dx_m=110.0, dy_m=20.0)
+    code, _, err = _run(
+        "handoff",
+        str(tmp_path / "img"),
+        "--to",
+        "odm",
+        "--ground-elevation-m",
+        "0",
+        "-o",
+        str(tmp_path / "o"),
+    )
+    assert code == 0, err
+    options = {o["name"] for o in json.loads((tmp_path / "o" / "options.json").read_text())}
+    assert options == {"camera-lens"}  # 3 neighbours of 4 frames would be exhaustive matching
 
 
 @pytest.mark.parametrize("engine", ["metashape", "pix4d"])
@@ -140,8 +174,11 @@ def test_reference_files_with_a_readme(tmp_path: Path, block, engine: str) -> No
 
 def test_bad_input_exits_2_with_the_fix(tmp_path: Path, block) -> None:  # type: ignore[no-untyped-def]
     images, frames = block
-    code, _, err = _run("handoff", str(images), "--to", "colmap", "-o", str(tmp_path / "a"))
-    assert code == 2 and "--ground-elevation-m" in err
+    # A ground above the cameras: refused with the figures, nothing written.
+    code, _, err = _run(
+        "handoff", str(images), "--to", "colmap", "--ground-elevation-m", "500", "-o", str(tmp_path / "a")
+    )
+    assert code == 2 and "check the ground elevation" in err and not (tmp_path / "a").exists()
     code, _, err = _run(
         "handoff", str(images), "--to", "odm", "--run", "--ground-elevation-m", "0", "-o", str(tmp_path / "b")
     )
