@@ -24,7 +24,7 @@ from ..gcp import GcpSet, read_gcp
 from .control import ControlPlan, check_distances, control_accuracy, validate_control
 from .errors import HandoffInputError
 from .prepare import GroundOptions, Prepared, prepare
-from .quicklook import DEFAULT_MAX_FEATURES, DEFAULT_MAX_IMAGE_SIZE_PX, QuickLook
+from .quicklook import DEFAULT_MAPPER, DEFAULT_MAX_FEATURES, DEFAULT_MAX_IMAGE_SIZE_PX, MAPPERS, QuickLook
 
 log = logging.getLogger(__name__)
 
@@ -52,6 +52,7 @@ class HandoffOptions:
     line_neighbours: int = 2
     max_image_size_px: int = DEFAULT_MAX_IMAGE_SIZE_PX
     max_features: int = DEFAULT_MAX_FEATURES
+    mapper: str = DEFAULT_MAPPER
     overwrite: bool = False
     node_url: str | None = None
     token: str = ""
@@ -89,6 +90,10 @@ def handoff(
 
     if options.run and options.engine is not Engine.COLMAP:
         raise HandoffInputError(f"--run runs COLMAP only; drop --run for --to {options.engine.value}")
+    if options.mapper not in MAPPERS:
+        raise HandoffInputError(f"--mapper {options.mapper!r}: choose {' or '.join(MAPPERS)}")
+    if not (100 <= options.max_features <= 100000):
+        raise HandoffInputError(f"--max-features {options.max_features} is outside 100..100000")
     if not (200 <= options.max_image_size_px <= 20000):
         raise HandoffInputError(f"--max-image-size-px {options.max_image_size_px} is outside 200..20000")
     address = None
@@ -134,6 +139,7 @@ def handoff(
                     stage,
                     max_image_size_px=options.max_image_size_px,
                     max_features=options.max_features,
+                    mapper=options.mapper,
                     progress=say,
                 )
                 report["quicklook"] = quicklook_dict(quick)
