@@ -37,9 +37,9 @@ log = logging.getLogger(__name__)
 F64 = NDArray[np.float64]
 
 #: Longer side of the frames features are extracted on, pixels (speed against detail).
-DEFAULT_MAX_IMAGE_SIZE_PX = 1200
+DEFAULT_MAX_IMAGE_SIZE_PX = 1000
 #: SIFT features per frame.
-DEFAULT_MAX_FEATURES = 4000
+DEFAULT_MAX_FEATURES = 2000
 #: COLMAP's mapper: "incremental" (with the pose priors) or "global" (GLOMAP).
 MAPPERS = ("incremental", "global")
 DEFAULT_MAPPER = "incremental"
