@@ -11,12 +11,16 @@ model (and in any model), 3D points and mean reprojection error of the largest m
 machine's load (``os.getloadavg``) when the matcher started.
 
 The footprint pairs need the ground. ``--ground-elevation-m`` gives it; without it, it is taken
-from the exhaustive model (run first): the median elevation of its 3D points once the model is
-placed on the pose priors by a similarity on the camera centres (the GPS altitudes place it, to
-their own accuracy), and the script says so.
+from the first matcher's model (the position pairs by default): the median elevation of its 3D
+points once the model is placed on the pose priors by a similarity on the camera centres (the GPS
+altitudes place it, to their own accuracy), and the script says so.
+
+``--features-db PATH`` keeps the database with its features there (and reuses it when it exists),
+so a second run skips the extraction.
 
 Run: nice .venv/bin/python benchmarks/matching_seneca.py [IMAGES] [--ground-elevation-m M]
-     [--max-image-size-px 1000] [--max-features 2000] [--matchers exhaustive,footprint,position,spatial]
+     [--max-image-size-px 1000] [--max-features 2000] [--matchers position,footprint,spatial,exhaustive]
+     [--features-db /tmp/seneca_features.db]
 """
 
 from __future__ import annotations
@@ -68,7 +72,8 @@ def main() -> None:
     parser.add_argument("--ground-elevation-m", type=float, default=None)
     parser.add_argument("--max-image-size-px", type=int, default=1000)
     parser.add_argument("--max-features", type=int, default=2000)
-    parser.add_argument("--matchers", default="exhaustive,footprint,position,spatial")
+    parser.add_argument("--matchers", default="position,footprint,spatial,exhaustive")
+    parser.add_argument("--features-db", type=Path, default=None)
     args = parser.parse_args()
     matchers = args.matchers.split(",")
 
@@ -82,21 +87,26 @@ def main() -> None:
         root = Path(tmp)
         write_colmap_project(by_position, root / "project")
         db = root / "project" / DATABASE
-        t, c = time.perf_counter(), _cpu_s()
-        colmap.extract_features(
-            db,
-            block.image_dir,
-            block.names,
-            max_image_size_px=args.max_image_size_px,
-            max_features=args.max_features,
-        )
-        print(
-            f"features at {args.max_image_size_px} px, {args.max_features} per frame: "
-            f"{time.perf_counter() - t:.1f} s wall, {_cpu_s() - c:.1f} s CPU (load {_load()})",
-            flush=True,
-        )
-        order = sorted(matchers, key=lambda m: m != "exhaustive") if ground_m is None else matchers
-        for mode in order:
+        if args.features_db is not None and args.features_db.exists():
+            shutil.copy(args.features_db, db)
+            print(f"features from {args.features_db}", flush=True)
+        else:
+            t, c = time.perf_counter(), _cpu_s()
+            colmap.extract_features(
+                db,
+                block.image_dir,
+                block.names,
+                max_image_size_px=args.max_image_size_px,
+                max_features=args.max_features,
+            )
+            print(
+                f"features at {args.max_image_size_px} px, {args.max_features} per frame: "
+                f"{time.perf_counter() - t:.1f} s wall, {_cpu_s() - c:.1f} s CPU (load {_load()})",
+                flush=True,
+            )
+            if args.features_db is not None:
+                shutil.copy(db, args.features_db)
+        for mode in matchers:
             load = _load()
             copy = root / f"{mode}.db"
             shutil.copy(db, copy)
@@ -108,9 +118,7 @@ def main() -> None:
                 listed = len(by_position.pairs)
             elif mode == "footprint":
                 if ground_m is None:
-                    raise SystemExit(
-                        "footprint pairs need --ground-elevation-m or the exhaustive matcher first"
-                    )
+                    raise SystemExit("footprint pairs need --ground-elevation-m or another matcher first")
                 with_ground = prepare(args.images, ground=GroundOptions(ground_elevation_m=ground_m))
                 pairs_file.write_text(with_ground.pairs.text(with_ground.block), encoding="utf-8")
                 listed = len(with_ground.pairs)
@@ -130,9 +138,9 @@ def main() -> None:
             )
             map_s, map_cpu = time.perf_counter() - t, _cpu_s() - c
             big = models[0] if models else None
-            if mode == "exhaustive" and ground_m is None and big is not None:
+            if ground_m is None and big is not None:
                 ground_m = _ground_from_model(by_position, big)
-                print(f"ground from the exhaustive model's points: {ground_m:.1f} m AMSL", flush=True)
+                print(f"ground from the {mode} model's points: {ground_m:.1f} m AMSL", flush=True)
             rows.append(
                 (
                     mode,
