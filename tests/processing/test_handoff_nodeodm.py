@@ -230,7 +230,7 @@ def test_ctrl_c_during_the_upload_cancels_removes_and_exits(
         assert time.monotonic() < deadline and child.poll() is None, child.communicate()
         time.sleep(0.05)
     child.send_signal(signal.SIGINT)
-    time.sleep(1.0)  # the child stops its uploads and waits for those on the wire
+    time.sleep(5.0)  # the child takes the signal, stops its uploads and waits for those on the wire
     peer.release.set()  # type: ignore[attr-defined]
     start = time.monotonic()
     _, err = child.communicate(timeout=30)
