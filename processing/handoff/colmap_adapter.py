@@ -268,3 +268,27 @@ def read_model(folder: Path) -> ColmapModel:
     import pycolmap
 
     return _wrap(pycolmap.Reconstruction(str(folder)))
+
+
+# --- The hand-off's quick-look: COLMAP's global mapper (GLOMAP) ------------------------------------
+
+
+def global_mapping(
+    database: Path, image_dir: Path, output_dir: Path, *, min_model_size: int = 3
+) -> list[ColmapModel]:
+    """COLMAP's global mapper (GLOMAP, in COLMAP since 3.12): rotation averaging, then every
+    camera and point placed at once, then bundle adjustment; the models it kept, largest first. It
+    takes no pose priors: the quick-look places its model on them afterwards."""
+    import pycolmap
+
+    output_dir.mkdir(parents=True, exist_ok=True)
+    options = pycolmap.GlobalPipelineOptions()
+    options.min_model_size = min_model_size
+    options.num_threads = min(os.cpu_count() or 1, 4)
+    options.random_seed = 1
+    try:
+        result = pycolmap.global_mapping(str(database), str(image_dir), str(output_dir), options=options)
+    except RuntimeError as error:
+        raise HandoffError(f"COLMAP's global mapper failed: {error}") from error
+    models = [_wrap(rec) for rec in result.values()]
+    return sorted(models, key=lambda m: len(m.registered), reverse=True)

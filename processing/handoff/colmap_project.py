@@ -25,8 +25,7 @@ _README = """COLMAP project written by sfap handoff.
 database.db   cameras (one per camera model: focal length in pixels, principal point at the
               centre), one image per frame, a pose prior per positioned frame (CARTESIAN, in the
               local frame named in project.json, covariance from the tags' accuracy)
-pairs.txt     the image pairs to match, from the frames' ground footprints ({n_pairs} pairs of
-              {n_all} possible)
+pairs.txt     the image pairs to match ({n_pairs} pairs of {n_all} possible): {pairs_from}
 images        the image folder ({image_dir})
 
 Run it with COLMAP's command line:
@@ -100,7 +99,14 @@ def write_colmap_project(prepared: Prepared, folder: Path) -> dict[str, Any]:
     (folder / PROJECT).write_text(json.dumps(info, indent=2), encoding="utf-8")
     (folder / "README.txt").write_text(
         _README.format(
-            n_pairs=len(prepared.pairs), n_all=info["pairs"]["possible"], image_dir=block.image_dir
+            n_pairs=len(prepared.pairs),
+            n_all=info["pairs"]["possible"],
+            image_dir=block.image_dir,
+            pairs_from="from the frames' ground footprints"
+            if prepared.pairs.footprints
+            else "from the camera positions (no ground)"
+            if prepared.block.has_position.any()
+            else "every pair (no positions)",
         ),
         encoding="utf-8",
     )

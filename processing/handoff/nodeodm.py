@@ -49,19 +49,37 @@ class NodeAddress:
 
 
 def parse_node_url(url: str) -> NodeAddress:
-    """``nodeodm://HOST:PORT``, ``http://HOST:PORT`` or ``https://HOST[:443]``."""
-    u = urlparse(url)
+    """``nodeodm://HOST:PORT``, ``http://HOST:PORT`` or ``https://HOST[:443]`` (an IPv6 host in
+    brackets: ``nodeodm://[::1]:3000``). Anything else: one HandoffInputError naming the value and
+    the fix."""
+    try:
+        u = urlparse(url)
+        port = u.port
+    except ValueError as error:  # "Port out of range", a port that is not a number, "Invalid IPv6 URL"
+        raise HandoffInputError(
+            f"{url!r} is not a node address ({error}); write nodeodm://HOST:PORT with PORT a number "
+            "1-65535, an IPv6 host in brackets (nodeodm://[::1]:3000)"
+        ) from None
     if u.scheme not in ("nodeodm", "http", "https") or not u.hostname:
         raise HandoffInputError(f"{url!r} is not a node address; write nodeodm://HOST:PORT or https://HOST")
+    host = f"[{u.hostname}]" if ":" in u.hostname else u.hostname
     if u.scheme == "https":
-        if u.port not in (None, 443):
+        if port not in (None, 443):
             raise HandoffInputError(
                 f"{url}: pyodm speaks HTTPS on port 443 only; put the node behind a proxy on 443"
             )
-        return NodeAddress(host=u.hostname, port=443, https=True)
-    if u.port is None:
-        raise HandoffInputError(f"{url}: give the node's port, e.g. nodeodm://{u.hostname}:3000")
-    return NodeAddress(host=u.hostname, port=u.port, https=False)
+        return NodeAddress(host=host, port=443, https=True)
+    if port is None:
+        raise HandoffInputError(f"{url}: give the node's port, e.g. nodeodm://{host}:3000")
+    if port == 0:
+        raise HandoffInputError(
+            f"{url}: port 0 is no port a node listens on; give its port (1-65535), e.g. 3000"
+        )
+    if port == 443:
+        raise HandoffInputError(
+            f"{url}: pyodm speaks HTTPS on port 443; write https://{host} for a node behind HTTPS there"
+        )
+    return NodeAddress(host=host, port=port, https=False)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -113,10 +131,11 @@ def _explain(error: Exception, address: NodeAddress, stage: str) -> NodeError:
     return NodeError(f"{stage} on {address.label} failed: {text}")
 
 
-def _in_daemon_thread(work: Callable[[], Any]) -> Any:
+def _in_daemon_thread(work: Callable[[], Any], threads: list[threading.Thread] | None = None) -> Any:
     """Run ``work`` in a daemon thread and wait for it here. pyodm uploads and downloads with
     threads of its own that are not daemons; started from a daemon thread they are daemons too,
-    so Ctrl-C (which arrives here, in the main thread) cannot leave the process hanging on them."""
+    so Ctrl-C (which arrives here, in the main thread) cannot leave the process hanging on them.
+    The thread is appended to ``threads`` (so a clean-up can wait for it)."""
     outcome: dict[str, Any] = {}
 
     def run() -> None:
@@ -126,12 +145,62 @@ def _in_daemon_thread(work: Callable[[], Any]) -> Any:
             outcome["error"] = error
 
     thread = threading.Thread(target=run, daemon=True, name="nodeodm-transfer")
+    if threads is not None:
+        threads.append(thread)
     thread.start()
     while thread.is_alive():
         thread.join(0.2)
     if "error" in outcome:
         raise outcome["error"]
     return outcome.get("value")
+
+
+class _UploadStoppedError(Exception):
+    """Raised in pyodm's upload workers once the upload is given up (failure or Ctrl-C)."""
+
+
+#: Seconds the clean-up waits for uploads already on the wire before it clears the node's upload.
+UPLOAD_STOP_WAIT_S = 12.0
+
+
+def _clear_upload(
+    node: Any, task: Any, task_uuid: str, address: NodeAddress, transfers: list[threading.Thread]
+) -> str:
+    """Remove what an unfinished task left on the node; returns what remains there, in words.
+
+    NodeODM's API has no call that deletes an upload in progress (its files wait in the node's
+    tmp/<uuid> until --cleanup_uploads_after, 2880 minutes by default). What it allows: commit the
+    upload, which moves the files into a task (or, with no file, deletes the folder), then cancel
+    and remove that task, which deletes its folder. A file still on the wire after
+    :data:`UPLOAD_STOP_WAIT_S` can land after the commit and stay in tmp/<uuid>."""
+    from pyodm.exceptions import OdmError
+
+    deadline = time.monotonic() + UPLOAD_STOP_WAIT_S
+    for thread in transfers:
+        thread.join(max(0.0, deadline - time.monotonic()))
+    in_flight = any(t.is_alive() for t in transfers)
+    committed = False
+    with contextlib.suppress(OdmError, OSError):
+        answer = node.post(f"/task/new/commit/{task_uuid}")
+        committed = isinstance(answer, dict) and "error" not in answer
+    with contextlib.suppress(OdmError, OSError):
+        task.cancel()
+    with contextlib.suppress(OdmError, OSError):
+        task.remove()
+    remains = (
+        f"uploads still in progress when it was cleared may leave files in the node's tmp/{task_uuid} until "
+        "its clean-up (NodeODM --cleanup_uploads_after, 2880 minutes by default)"
+        if in_flight
+        else "nothing"
+    )
+    log.warning(
+        "task %s: %s and removed from %s; left on the node: %s",
+        task_uuid,
+        "the partial upload was committed, cancelled" if committed else "cancelled",
+        address.label,
+        remains,
+    )
+    return remains
 
 
 def check_options(available: Sequence[str], options: Sequence[dict[str, Any]], address: NodeAddress) -> None:
@@ -180,7 +249,15 @@ def run_on_node(
             phase[0] = "committing the upload"
         return plain_post(url, *args, **kwargs)
 
-    node.post = post
+    stop = threading.Event()
+    transfers: list[threading.Thread] = []
+
+    def guarded_post(url: str, *args: Any, **kwargs: Any) -> Any:
+        if stop.is_set() and url.startswith("/task/new/upload"):
+            raise _UploadStoppedError("the upload was given up")
+        return post(url, *args, **kwargs)
+
+    node.post = guarded_post
     task_uuid = str(uuid.uuid4())
     task = node.get_task(task_uuid)
     created = False
@@ -205,7 +282,8 @@ def run_on_node(
                 retry_timeout=1,
                 parallel_uploads=4,
                 task_uuid=task_uuid,
-            )
+            ),
+            transfers,
         )
         phase[0] = "processing"
         state = {"progress": -1.0}
@@ -252,9 +330,14 @@ def run_on_node(
         raise _explain(error, address, phase[0]) from None
     finally:
         if created:
-            # Failure or Ctrl-C: the node keeps nothing of ours.
-            with contextlib.suppress(OdmError, OSError):
-                task.cancel()
-            with contextlib.suppress(OdmError, OSError):
-                task.remove()
-            log.info("task %s cancelled and removed from %s", task_uuid, address.label)
+            # Failure or Ctrl-C: the node keeps nothing of ours that its API lets us remove.
+            stop.set()
+            if phase[0] in ("creating the task", "uploading", "committing the upload"):
+                node.post = post  # the clean-up's own requests pass
+                _clear_upload(node, task, task_uuid, address, transfers)
+            else:
+                with contextlib.suppress(OdmError, OSError):
+                    task.cancel()
+                with contextlib.suppress(OdmError, OSError):
+                    task.remove()
+                log.info("task %s cancelled and removed from %s", task_uuid, address.label)

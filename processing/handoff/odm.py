@@ -6,10 +6,13 @@ horizontal_accuracy vertical_accuracy``), ``gcp_list.txt`` when control is given
 coordinates as surveyed), ``options.json`` (the task options as WebODM, NodeODM and pyodm take
 them: a list of {name, value}) and ``odm_args.txt`` (the same as ODM command-line flags).
 
-Options that follow from the data: ``gps-accuracy`` (the median horizontal standard deviation
-of the positions), ``camera-lens`` (``brown``: radial and tangential distortion, what a
-non-metric frame camera needs), ``matcher-neighbors`` (the 90th percentile of the number of
-footprint partners per frame, so a frame is matched against as many as overlap it).
+Options that follow from the data: ``camera-lens`` (``brown``: radial and tangential distortion,
+what a non-metric frame camera needs) and ``matcher-neighbors`` (the median number of partners a
+frame has among the pairs: those its footprint overlaps, or its nearest by position when the
+ground is not known; left at ODM's default when that reaches every other frame, since the option
+would then match every pair). No ``gps-accuracy``: ODM applies that one number to every image
+and so overrides the per-image accuracies of geo.txt (its dataset stage forces the given DOP on
+all photos when the option is set), which are what the tags say.
 """
 
 from __future__ import annotations
@@ -42,16 +45,19 @@ def link_or_copy_images(block: Block, folder: Path) -> None:
             shutil.copy2(src, folder / name)
 
 
+def matcher_neighbors(block: Block, pairs: ImagePairs) -> int | None:
+    """ODM's ``matcher-neighbors`` from the pairs (module docstring); None: leave ODM's default."""
+    if not len(pairs) or not block.has_position.all():
+        return None
+    partners = np.bincount(np.concatenate([pairs.i, pairs.j]), minlength=len(block))
+    neighbours = math.ceil(float(np.median(partners)))
+    return neighbours if 0 < neighbours < len(block) - 1 else None
+
+
 def odm_options(block: Block, pairs: ImagePairs) -> list[dict[str, Any]]:
     options: list[dict[str, Any]] = [{"name": "camera-lens", "value": "brown"}]
-    if block.has_position.any():
-        sigma = float(np.median(block.sigma_xy_m[block.has_position]))
-        options.append({"name": "gps-accuracy", "value": round(max(sigma, 0.01), 2)})
-    partners = (
-        np.bincount(np.concatenate([pairs.i, pairs.j]), minlength=len(block)) if len(pairs) else np.zeros(1)
-    )
-    neighbours = math.ceil(float(np.percentile(partners, 90))) if len(pairs) else 0
-    if block.has_position.all() and neighbours > 0:
+    neighbours = matcher_neighbors(block, pairs)
+    if neighbours is not None:
         options.append({"name": "matcher-neighbors", "value": neighbours})
     return options
 
@@ -118,25 +124,90 @@ def write_odm_project(block: Block, pairs: ImagePairs, gcps: GcpSet | None, fold
 
 _METASHAPE_README = """Metashape reference files written by sfap handoff.
 
+{cameras}{gcp}"""
+
+_METASHAPE_CAMERAS = """\
 cameras_reference.csv  camera positions: File > Import > Import Reference (or the Reference pane's
                        Import button). Columns: label, longitude, latitude, altitude (m, {alt}),
                        accuracy x/y/z (m), yaw, pitch, roll (deg). Coordinate system WGS 84
                        (EPSG::4326). Angles are the Pix4D/ODM camera convention (yaw = bearing of
                        the image top, pitch = tilt off nadir): leave "Rotation" unticked in the
                        import dialog unless your project uses the same convention.
-{gcp}"""
+"""
 
-_PIX4D_README = """Pix4D reference files written by sfap handoff.
+_PIX4D_README = """Pix4D reference files written by sfap handoff (the formats of Pix4D's documentation:
+"Image geolocation and orientation import format", "Tie points (GCPs, CPs) import format" and
+"How to import and export Tie Points marks"; no header line, commas between columns).
 
-cameras_pix4d.csv  image geolocation: Project > Image Properties Editor > Image Geolocation >
-                   From File..., file format "Latitude, Longitude": columns image name,
-                   latitude, longitude, altitude (m, {alt}), horizontal and vertical accuracy
-                   (m). Coordinate system WGS 84.
-{gcp}"""
+{cameras}{gcp}"""
+
+_PIX4D_CAMERAS = """\
+cameras_pix4d.csv  image geolocation and orientation: PIX4Dmatic File > Import image geolocations
+                   and orientations... (PIX4Dmapper: Image Properties Editor > Image Geolocation >
+                   From File...). Nine columns: image name, latitude, longitude (WGS 84, EPSG:4326,
+                   in its axis order), altitude (m, {alt}), yaw, pitch, roll (deg, Pix4D's
+                   convention), horizontal and vertical accuracy (m).
+"""
+
+#: The accuracy written for each image mark of a Pix4D marks file, pixels: a mark placed by hand on
+#: a target's centre (the GCP files carry no accuracy of their marks).
+MARK_ACCURACY_PX = 1.0
+
+
+def _unknown_heights_note(gcps: GcpSet) -> str:
+    return (
+        "The ground control's elevations are all 0.0 in "
+        f"{Path(gcps.source).name}, OpenDroneMap's mark for an unknown height: the altitude cells are\n"
+        "left empty (Metashape: the marker has no Z reference; Pix4D: set these points' type to 2D GCP,\n"
+        "PIX4Dmapper GCP/MTP Manager, or give their heights before processing). The files hold no\n"
+        "accuracy of the survey either: set the marker accuracy (Metashape Reference Settings) or the\n"
+        "GCP accuracy (Pix4D) to what the survey achieved.\n"
+    )
+
+
+def _metashape_gcps(gcps: GcpSet, folder: Path, known: bool) -> str:
+    markers = ["label,longitude,latitude,altitude"] + [
+        f"{p.name},{p.lon_deg:.8f},{p.lat_deg:.8f}," + (f"{p.elevation_m:.3f}" if known else "")
+        for p in gcps.points
+    ]
+    (folder / "markers_reference.csv").write_text("\n".join(markers) + "\n", encoding="utf-8")
+    proj = ["marker,image,x_px,y_px"] + [
+        f"{o.point},{o.image},{o.x_px:.2f},{o.y_px:.2f}" for o in gcps.observations
+    ]
+    (folder / "marker_projections.csv").write_text("\n".join(proj) + "\n", encoding="utf-8")
+    return (
+        "markers_reference.csv  ground control as markers: Reference pane > Import (marker labels, WGS 84;\n"
+        "                       the first line names the columns: start from line 2). No accuracy\n"
+        "                       column: the GCP file gives none.\n"
+        "marker_projections.csv where each marker is in each image (pixels from the top-left corner): place\n"
+        "                       each marker on its images (right-click the image > Place Marker) at these\n"
+        "                       pixels.\n"
+    )
+
+
+def _pix4d_gcps(gcps: GcpSet, folder: Path, known: bool) -> str:
+    pts = [
+        f"{p.name},{p.lat_deg:.8f},{p.lon_deg:.8f}," + (f"{p.elevation_m:.3f}" if known else "")
+        for p in gcps.points
+    ]
+    (folder / "gcps_pix4d.csv").write_text("\n".join(pts) + "\n", encoding="utf-8")
+    marks = [f"{o.image},{o.point},{o.x_px:.2f},{o.y_px:.2f},{MARK_ACCURACY_PX:g}" for o in gcps.observations]
+    (folder / "gcp_image_marks.csv").write_text("\n".join(marks) + "\n", encoding="utf-8")
+    return (
+        "gcps_pix4d.csv       ground control: PIX4Dmatic File > Import GCPs... (PIX4Dmapper: GCP/MTP\n"
+        "                     Manager > Import GCPs..., order Latitude, Longitude, Altitude). Four\n"
+        "                     columns: label, latitude, longitude (WGS 84), altitude (m); no accuracy\n"
+        "                     columns: the GCP file gives none, so Pix4D's default accuracy applies until\n"
+        "                     you set the survey's.\n"
+        "gcp_image_marks.csv  image marks: image name, point label, x, y (pixels from the top-left corner),\n"
+        f"                     accuracy (pixels, {MARK_ACCURACY_PX:g}: a mark placed by hand on a target's\n"
+        "                     centre).\n"
+    )
 
 
 def write_reference(block: Block, gcps: GcpSet | None, folder: Path, engine: str) -> dict[str, Any]:
-    """``engine``: "metashape" or "pix4d"."""
+    """``engine``: "metashape" or "pix4d". No camera file when no image has a position (the
+    result's ``complete`` is then False: the hand-off could not give what was asked)."""
     alt = block.alt_reference.value if block.alt_reference else "unknown reference"
     yaw: dict[str, tuple[float, float, float]] = {}
     for f in block.frames:
@@ -154,45 +225,33 @@ def write_reference(block: Block, gcps: GcpSet | None, folder: Path, engine: str
             )
         else:
             rows.append(
-                f"{n},{block.lat_deg[k]:.8f},{block.lon_deg[k]:.8f},{block.alt_m[k]:.3f},{block.sigma_xy_m[k]:.3f},"
-                f"{block.sigma_z_m[k]:.3f}"
+                f"{n},{block.lat_deg[k]:.8f},{block.lon_deg[k]:.8f},{block.alt_m[k]:.3f},{y:.2f},{p:.2f},{r:.2f},"
+                f"{block.sigma_xy_m[k]:.3f},{block.sigma_z_m[k]:.3f}"
             )
+    notes: list[str] = []
     gcp_text = ""
     if gcps is not None:
-        if engine == "metashape":
-            markers = ["label,longitude,latitude,altitude,accuracy"] + [
-                f"{p.name},{p.lon_deg:.8f},{p.lat_deg:.8f},{p.elevation_m:.3f},0.02" for p in gcps.points
-            ]
-            (folder / "markers_reference.csv").write_text("\n".join(markers) + "\n", encoding="utf-8")
-            proj = ["marker,image,x_px,y_px"] + [
-                f"{o.point},{o.image},{o.x_px:.2f},{o.y_px:.2f}" for o in gcps.observations
-            ]
-            (folder / "marker_projections.csv").write_text("\n".join(proj) + "\n", encoding="utf-8")
-            gcp_text = (
-                "markers_reference.csv  ground control as markers: Reference pane > Import (marker "
-                "labels, WGS 84).\n"
-                "marker_projections.csv where each marker is in each image (pixels from the "
-                "top-left corner): place\n"
-                "                       each marker on its images (right-click the image > Place "
-                "Marker) at these pixels.\n"
-            )
-        else:
-            pts = ["label,latitude,longitude,altitude"] + [
-                f"{p.name},{p.lat_deg:.8f},{p.lon_deg:.8f},{p.elevation_m:.3f}" for p in gcps.points
-            ]
-            (folder / "gcps_pix4d.csv").write_text("\n".join(pts) + "\n", encoding="utf-8")
-            marks = [f"{o.image},{o.point},{o.x_px:.2f},{o.y_px:.2f}" for o in gcps.observations]
-            (folder / "gcp_image_marks.csv").write_text("\n".join(marks) + "\n", encoding="utf-8")
-            gcp_text = (
-                "gcps_pix4d.csv       ground control: Project > GCP/MTP Manager > Import GCPs... "
-                "(Latitude, Longitude,\n"
-                "                     Altitude order: choose 'Lat, Long, Alt').\n"
-                "gcp_image_marks.csv  image marks: GCP/MTP Manager > Import Marks... (image, label, "
-                "x, y in pixels).\n"
+        known = any(p.elevation_m != 0.0 for p in gcps.points)
+        gcp_text = (_metashape_gcps if engine == "metashape" else _pix4d_gcps)(gcps, folder, known)
+        if not known:
+            gcp_text += "\n" + _unknown_heights_note(gcps)
+            notes.append(
+                "the ground control's elevations are all 0.0 (unknown): written without heights and without "
+                "accuracies (README.txt)"
             )
     name = "cameras_reference.csv" if engine == "metashape" else "cameras_pix4d.csv"
-    (folder / name).write_text("\n".join(rows) + ("\n" if rows else ""), encoding="utf-8")
+    cameras_text = ""
+    if rows:
+        (folder / name).write_text("\n".join(rows) + "\n", encoding="utf-8")
+        cameras_text = (_METASHAPE_CAMERAS if engine == "metashape" else _PIX4D_CAMERAS).format(alt=alt)
+    else:
+        cameras_text = f"{name} is not written: no image has a position.\n"
     template = _METASHAPE_README if engine == "metashape" else _PIX4D_README
-    (folder / "README.txt").write_text(template.format(alt=alt, gcp=gcp_text), encoding="utf-8")
-    notes = [] if rows else ["no image has a position: the camera file is empty"]
-    return {"files": sorted(p.name for p in folder.iterdir()), "notes": notes}
+    (folder / "README.txt").write_text(template.format(cameras=cameras_text, gcp=gcp_text), encoding="utf-8")
+    files = sorted(p.name for p in folder.iterdir())
+    if not rows:
+        notes.append(
+            f"no image has a position: {name} (the camera positions) was not written; written: "
+            + ", ".join(files)
+        )
+    return {"files": files, "notes": notes, "complete": bool(rows)}

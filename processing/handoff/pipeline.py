@@ -24,7 +24,7 @@ from ..gcp import GcpSet, read_gcp
 from .control import ControlPlan, check_distances, control_accuracy, validate_control
 from .errors import HandoffInputError
 from .prepare import GroundOptions, Prepared, prepare
-from .quicklook import DEFAULT_MAX_FEATURES, DEFAULT_MAX_IMAGE_SIZE_PX, QuickLook
+from .quicklook import DEFAULT_MAPPER, DEFAULT_MAX_FEATURES, DEFAULT_MAX_IMAGE_SIZE_PX, MAPPERS, QuickLook
 
 log = logging.getLogger(__name__)
 
@@ -52,6 +52,7 @@ class HandoffOptions:
     line_neighbours: int = 2
     max_image_size_px: int = DEFAULT_MAX_IMAGE_SIZE_PX
     max_features: int = DEFAULT_MAX_FEATURES
+    mapper: str = DEFAULT_MAPPER
     overwrite: bool = False
     node_url: str | None = None
     token: str = ""
@@ -89,8 +90,19 @@ def handoff(
 
     if options.run and options.engine is not Engine.COLMAP:
         raise HandoffInputError(f"--run runs COLMAP only; drop --run for --to {options.engine.value}")
+    if options.mapper not in MAPPERS:
+        raise HandoffInputError(f"--mapper {options.mapper!r}: choose {' or '.join(MAPPERS)}")
+    if not (100 <= options.max_features <= 100000):
+        raise HandoffInputError(f"--max-features {options.max_features} is outside 100..100000")
     if not (200 <= options.max_image_size_px <= 20000):
         raise HandoffInputError(f"--max-image-size-px {options.max_image_size_px} is outside 200..20000")
+    address = None
+    if options.engine is Engine.NODEODM:
+        from .nodeodm import parse_node_url
+
+        if options.node_url is None:
+            raise HandoffInputError("--to nodeodm needs the node's address: nodeodm://HOST:PORT")
+        address = parse_node_url(options.node_url)  # a bad address is refused before any work
     check_output_dir(work, overwrite=options.overwrite)
     say = progress or (lambda text: None)
     say("reading the frames")
@@ -127,6 +139,7 @@ def handoff(
                     stage,
                     max_image_size_px=options.max_image_size_px,
                     max_features=options.max_features,
+                    mapper=options.mapper,
                     progress=say,
                 )
                 report["quicklook"] = quicklook_dict(quick)
@@ -158,11 +171,10 @@ def handoff(
                         t for t in (table_3_2(acc), distances_text(distances)) if t
                     )
         elif options.engine is Engine.NODEODM:
-            from .nodeodm import parse_node_url, run_on_node
+            from .nodeodm import run_on_node
             from .odm import GCP_TXT, GEO_TXT, write_odm_project
 
-            assert options.node_url is not None
-            address = parse_node_url(options.node_url)
+            assert address is not None
             say("writing the ODM project")
             report["odm"] = write_odm_project(prepared.block, prepared.pairs, gcps, stage)
             files = [stage / "images" / n for n in prepared.block.names]
@@ -187,6 +199,7 @@ def handoff(
 
             say(f"writing the {options.engine.value} reference files")
             report[options.engine.value] = write_reference(prepared.block, gcps, stage, options.engine.value)
+            passed = bool(report[options.engine.value]["complete"])  # no camera positions: exit 1
         (stage / "report.json").write_text(write_json(report), encoding="utf-8")
         if options.engine is Engine.COLMAP:
             (stage / "report.html").write_text(report_html(report, quick), encoding="utf-8")

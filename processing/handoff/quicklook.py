@@ -37,9 +37,12 @@ log = logging.getLogger(__name__)
 F64 = NDArray[np.float64]
 
 #: Longer side of the frames features are extracted on, pixels (speed against detail).
-DEFAULT_MAX_IMAGE_SIZE_PX = 1200
+DEFAULT_MAX_IMAGE_SIZE_PX = 1000
 #: SIFT features per frame.
-DEFAULT_MAX_FEATURES = 4000
+DEFAULT_MAX_FEATURES = 2000
+#: COLMAP's mapper: "incremental" (with the pose priors) or "global" (GLOMAP).
+MAPPERS = ("incremental", "global")
+DEFAULT_MAPPER = "incremental"
 #: The block reconstructs when its largest model holds at least this share of the frames...
 MIN_REGISTERED_RATIO = 0.5
 #: ... and no other model holds this many frames and this share of them.
@@ -115,6 +118,8 @@ class QuickLook:
     georegistration: Georegistration | None
     comparison: Comparison | None
     max_image_size_px: int
+    max_features: int = DEFAULT_MAX_FEATURES
+    mapper: str = DEFAULT_MAPPER
     messages: tuple[str, ...] = field(default_factory=tuple)
     frames_in_placed_models: tuple[str, ...] = ()
 
@@ -277,6 +282,7 @@ def run_quicklook(
     *,
     max_image_size_px: int = DEFAULT_MAX_IMAGE_SIZE_PX,
     max_features: int = DEFAULT_MAX_FEATURES,
+    mapper: str = DEFAULT_MAPPER,
     progress: Callable[[str], None] | None = None,
 ) -> QuickLook:
     """Run the stages on the project in ``folder`` (written by
@@ -299,15 +305,19 @@ def run_quicklook(
     timings["features_s"] = time.perf_counter() - t
     keypoints = colmap.keypoint_counts(db)
     t = time.perf_counter()
-    say(f"matching: {len(prepared.pairs)} footprint pairs")
+    say(f"matching: {len(prepared.pairs)} pairs")
     colmap.match_pairs_file(db, folder / PAIRS)
     timings["matching_s"] = time.perf_counter() - t
     pairs_matched, inliers = colmap.verified_matches(db)
     t = time.perf_counter()
-    say("mapping: incremental")
-    models = colmap.incremental_mapping(
-        db, block.image_dir, folder / "sparse", use_priors=int(block.has_position.sum()) >= 3
-    )
+    if mapper == "global":
+        say("mapping: global (GLOMAP)")
+        models = colmap.global_mapping(db, block.image_dir, folder / "sparse")
+    else:
+        say("mapping: incremental")
+        models = colmap.incremental_mapping(
+            db, block.image_dir, folder / "sparse", use_priors=int(block.has_position.sum()) >= 3
+        )
     timings["mapping_s"] = time.perf_counter() - t
     geo: Georegistration | None = None
     comparison: Comparison | None = None
@@ -359,6 +369,8 @@ def run_quicklook(
         georegistration=geo,
         comparison=comparison,
         max_image_size_px=max_image_size_px,
+        max_features=max_features,
+        mapper=mapper,
         messages=tuple(messages),
         frames_in_placed_models=tuple(sorted(placed_frames)),
     )

@@ -35,6 +35,8 @@ def quicklook_dict(q: QuickLook) -> dict[str, Any]:
         "mean_reprojection_error_px": big.mean_reprojection_error_px if big else None,
         "pairs_matched": q.pairs_matched,
         "max_image_size_px": q.max_image_size_px,
+        "max_features": q.max_features,
+        "mapper": q.mapper,
         "keypoints_per_frame_median": float(np.median(list(q.keypoints.values()))) if q.keypoints else None,
         "timings_s": q.timings_s,
         "georegistration": q.georegistration.as_dict() if q.georegistration else None,

@@ -11,7 +11,12 @@ import click
 
 from processing.handoff.pipeline import Engine, HandoffOptions, HandoffResult, handoff
 from processing.handoff.prepare import GroundOptions
-from processing.handoff.quicklook import DEFAULT_MAX_IMAGE_SIZE_PX
+from processing.handoff.quicklook import (
+    DEFAULT_MAPPER,
+    DEFAULT_MAX_FEATURES,
+    DEFAULT_MAX_IMAGE_SIZE_PX,
+    MAPPERS,
+)
 from processing.image_tags import camera_option
 
 from ..common import dumps_json, echo_table, json_option, overwrite_option
@@ -86,6 +91,20 @@ _ENGINES = [e.value for e in Engine]
     show_default=True,
     help="--run: longer side of the downscaled frames features are extracted on, pixels.",
 )
+@click.option(
+    "--max-features",
+    type=int,
+    default=DEFAULT_MAX_FEATURES,
+    show_default=True,
+    help="--run: SIFT features per frame.",
+)
+@click.option(
+    "--mapper",
+    type=click.Choice(MAPPERS),
+    default=DEFAULT_MAPPER,
+    show_default=True,
+    help="--run: COLMAP's incremental mapper (with the pose priors) or its global mapper (GLOMAP).",
+)
 @overwrite_option
 @json_option
 def command(
@@ -103,6 +122,8 @@ def command(
     takeoff_elevation_m: float | None,
     min_overlap_pct: float,
     max_image_size_px: int,
+    max_features: int,
+    mapper: str,
     overwrite: bool,
     as_json: bool,
 ) -> HandoffResult:
@@ -113,7 +134,7 @@ def command(
 
     Exit code 0 done, 1 the block did not reconstruct (--run) or an engine failed, 2 bad input.
 
-    Example: sfap handoff photos/ --to colmap --ground-elevation-m 258 --run -o work/
+    Example: sfap handoff photos/ --to colmap --run -o work/
     """
     start = time.perf_counter()
 
@@ -142,6 +163,8 @@ def command(
         ),
         min_overlap_pct=min_overlap_pct,
         max_image_size_px=max_image_size_px,
+        max_features=max_features,
+        mapper=mapper,
         overwrite=overwrite,
         camera=camera_option(camera_id) if camera_id else None,
     )
@@ -171,6 +194,10 @@ def _present(result: HandoffResult, as_json: bool) -> None:
                 f"{ql['frames_registered']} of {ql['frames_total']} frames; models {ql['models']}",
             ),
             ("3D points", str(ql["points3d"])),
+            (
+                "time",
+                ", ".join(f"{k.removesuffix('_s')} {v:.0f} s" for k, v in ql["timings_s"].items()),
+            ),
             ("mean track length", f"{ql['mean_track_length']:.2f}" if ql["mean_track_length"] else "-"),
             (
                 "reprojection error",
@@ -190,6 +217,12 @@ def _present(result: HandoffResult, as_json: bool) -> None:
     engine_notes = [n for key in ("odm", "metashape", "pix4d") for n in report.get(key, {}).get("notes", [])]
     for note in [*project["notes"], *engine_notes]:
         click.echo(f"note: {note}", err=True)
+    for key in ("metashape", "pix4d"):
+        if key in report and not report[key]["complete"]:
+            click.echo(
+                f"FAIL: no image has a position, so the {key} project has no camera positions; "
+                f"written: {', '.join(report[key]['files'])}"
+            )
     if ql:
         for message in ql["messages"]:
             click.echo(f"warning: {message}", err=True)

@@ -102,6 +102,35 @@ def test_noise_free_scene_is_placed_exactly() -> None:
     assert result.control.range_m == pytest.approx(HEIGHT_M - np.mean([v[2] for v in sc["ground"].values()]))
 
 
+def test_known_survey_errors_at_check_points_come_out_per_axis_and_in_total() -> None:
+    # Heights known; the check points' surveyed coordinates are off by known amounts (a survey
+    # error), the control exact and the marks noise-free: the fit is exact, and each check point's
+    # residual is its offset. The RMSE rows are then the offsets' RMSE, axis by axis, horizontal
+    # and 3-D (the total takes dz squared, as dx and dy: sqrt(mean(dx^2 + dy^2 + dz^2))).
+    sc = _scene(0.0, seed=3)
+    names = sc["names"]
+    rng = np.random.default_rng(5)
+    offsets = {n: rng.uniform([-0.4, -0.4, 0.5], [0.4, 0.4, 2.0]) for n in names[6:]}
+    ground = {n: v + offsets[n] if n in offsets else v for n, v in sc["ground"].items()}
+    result = assess_accuracy(
+        ground_xyz_m=ground, observations=sc["obs"], views=sc["views"], control=names[:6], check=names[6:]
+    )
+    assert result.heights_known and result.check is not None
+    off = np.array([offsets[r.name] for r in result.residuals if r.role == "check"])
+    assert len(off) == 6
+    rx, ry, rz = np.sqrt(np.mean(off**2, axis=0))
+    assert result.check.rmse_x_m == pytest.approx(rx, abs=1e-6)
+    assert result.check.rmse_y_m == pytest.approx(ry, abs=1e-6)
+    assert result.check.rmse_z_m == pytest.approx(rz, abs=1e-6) and rz > 0.5
+    assert result.check.rmse_horizontal_m == pytest.approx(
+        math.sqrt(np.mean(off[:, 0] ** 2 + off[:, 1] ** 2)), abs=1e-6
+    )
+    assert result.check.rmse_total_m == pytest.approx(math.sqrt(np.mean(np.sum(off**2, axis=1))), abs=1e-6)
+    assert result.control.rmse_total_m < 1e-6
+    row = next(line for line in table_3_2(result).splitlines() if line.startswith("check"))
+    assert f"{result.check.rmse_total_m:.3f}" in row.split()
+
+
 @pytest.mark.parametrize("sigma_px", [0.3, 1.0, 3.0])
 def test_check_point_rmse_follows_the_injected_noise(sigma_px: float) -> None:
     # Many independent scenes so the RMSE is a stable estimate.

@@ -161,9 +161,13 @@ def test_existing_work_is_refused_and_nothing_is_half_written(tmp_path: Path) ->
             HandoffOptions(engine=Engine.COLMAP, ground=GroundOptions(ground_elevation_m=0.0)),
         )
     assert sorted(p.name for p in work.iterdir()) == ["keep.txt"]
-    # A failure midway (no ground for AMSL altitudes) leaves no staging folder behind.
-    with pytest.raises(Exception, match="ground-elevation-m"):
-        handoff(tmp_path / "img", tmp_path / "new", HandoffOptions(engine=Engine.COLMAP))
+    # A failure (a ground above the cameras) leaves no staging folder behind.
+    with pytest.raises(Exception, match="check the ground elevation"):
+        handoff(
+            tmp_path / "img",
+            tmp_path / "new",
+            HandoffOptions(engine=Engine.COLMAP, ground=GroundOptions(ground_elevation_m=500.0)),
+        )
     assert not (tmp_path / "new").exists()
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".new")]
 
