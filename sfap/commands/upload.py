@@ -12,7 +12,7 @@ from typing import Any, TypeVar
 
 import click
 
-from acquisition.errors import LinkError
+from acquisition.errors import LinkError, join_sentences
 from acquisition.link import Link
 from acquisition.mission_protocol import DEFAULT_RETRIES, DEFAULT_TIMEOUT_S, TransferPhase
 from acquisition.signing import load_signing_key
@@ -77,7 +77,7 @@ def open_link(
     except LinkError as error:
         if nothing_sent_note:
             # the same kind of error (a bad URL or key file stays bad usage), with the note
-            raise type(error)(f"{error}. {nothing_sent_note}") from error
+            raise type(error)(join_sentences(str(error), nothing_sent_note)) from error
         raise
 
 
@@ -170,7 +170,7 @@ def command(
     try:
         mission = read_mission(mission_file)
     except MissionFileError as error:
-        raise MissionFileError(f"{error}. {nothing_sent}") from error
+        raise MissionFileError(join_sentences(str(error), nothing_sent)) from error
     try:
         validate_mission(mission, max_alt_rel_home_m=max_alt_rel_home_m)
     except MissionValidationError as error:

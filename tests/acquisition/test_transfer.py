@@ -741,6 +741,8 @@ def test_mission_larger_than_the_vehicle_is_refused_at_once_with_the_excess() ->
     assert f"{count} items (home included)" in str(error) and "at most 30" in str(error)
     assert f"{count - 30} too many" in str(error) and "sorties" in str(error)
     assert error.mission_state is MissionState.UNCHANGED
+    # issue 22: "unchanged.. The vehicle's mission is unchanged."; said once, one full stop
+    assert ".." not in str(error) and str(error).lower().count("mission is unchanged") == 1
 
 
 @pytest.mark.parametrize(
