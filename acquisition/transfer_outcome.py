@@ -154,6 +154,13 @@ class MissionTransferError(TransferError):
         self.mission_state = mission_state
 
 
+class MissionInterruptedError(MissionTransferError):
+    """The user stopped a transfer (Ctrl-C); ``mission_state`` says what the vehicle now holds
+    (a real ArduPilot may keep a partial mission). Exit code 130, as any interrupt."""
+
+    exit_code = 130
+
+
 class MissionTooLargeError(MissionTransferError):
     """The vehicle holds fewer items than the mission has (MAV_MISSION_NO_SPACE with its
     capacity, "Only N items are supported"); nothing changed on the vehicle."""
