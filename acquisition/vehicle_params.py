@@ -62,11 +62,11 @@ class ParamRequirement:
 
     @property
     def needed(self) -> str:
-        """What the parameter must be, said to a person ("1 or 2", "not 0")."""
+        """What the parameter must be, said to a person ("1 or 2", "anything but 0")."""
         if self.allowed:
             values = sorted(self.allowed)
             return " or ".join(f"{v:g}" for v in values)
-        return "not " + " or ".join(f"{v:g}" for v in sorted(self.refused))
+        return "anything but " + " or ".join(f"{v:g}" for v in sorted(self.refused))
 
     def to_dict(self) -> dict[str, object]:
         return {
@@ -157,9 +157,9 @@ class ParamStatus:
         if self.ok:
             return f"{r.name} is {self.value:g} (needs {r.needed})"
         fix = (
-            f"set it to {r.set_to:g} (sfap upload --set-params does)"
+            f"Set it to {r.set_to:g} (sfap upload --set-params does)"
             if r.set_to is not None
-            else "set it in your ground station"
+            else "Set it in your ground station"
         )
         return f"{r.name} is {self.value:g}, needs {r.needed}: {r.why}. {fix}"
 

@@ -40,6 +40,12 @@ line. What it does, and which real behaviour each part copies:
   AUTOPILOT_VERSION (148) or HOME_POSITION (242), SET_MESSAGE_INTERVAL (511; UNSUPPORTED for
   a message it cannot send), answered with COMMAND_ACK; REQUEST_DATA_STREAM (no answer, as
   ArduPilot).
+- Parameters (:mod:`.parameters`): PARAM_REQUEST_READ, PARAM_SET and PARAM_REQUEST_LIST
+  answered with PARAM_VALUE, with ArduPilot SITL's defaults for the parameters sfap's
+  missions depend on (RTL_AUTOLAND 0 on a plane, CAM1_TYPE 1); as ArduPlane, it refuses to
+  arm (COMMAND_ACK FAILED, STATUSTEXT "PreArm: DO_LAND_START set and RTL_AUTOLAND disabled",
+  repeated every 30 s while disarmed) a mission with DO_LAND_START while RTL_AUTOLAND is 0;
+  ``auto_start`` tries again once a second.
 - Telemetry: as ArduPilot on a serial port, only HEARTBEAT and event messages until a ground
   station asks for streams (``streams_on_request``, the ArduPilot flavour's default).
 - Optionally the camera's card (:class:`.camera.FrameCard`): a small JPEG per photo, stamped
