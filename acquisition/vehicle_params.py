@@ -22,19 +22,27 @@ from __future__ import annotations
 
 import logging
 import math
+import struct
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from planner.mission import Autopilot, MavCmd, MissionItem, VehicleType
 
 from .errors import AcquisitionError
-from .mavlink_items import float32
-from .mission_protocol import LinkLike, link_clock
+
+if TYPE_CHECKING:  # the requirements need no MAVLink: a plan's summary imports them cheaply
+    from .mission_protocol import LinkLike
 
 log = logging.getLogger(__name__)
 
 DEFAULT_PARAM_TIMEOUT_S = 1.0
 DEFAULT_PARAM_RETRIES = 2
+
+
+def float32(value: float) -> float:
+    """``value`` as PARAM_VALUE carries it (IEEE single precision)."""
+    return float(struct.unpack("<f", struct.pack("<f", value))[0])
 
 
 class VehicleParameterError(AcquisitionError):
@@ -178,6 +186,8 @@ def _exchange(
 ) -> tuple[float, int] | None:
     """Send ``message`` until a PARAM_VALUE for ``name`` comes back: (value, MAV_PARAM_TYPE),
     or None after ``retries`` repeats without one."""
+    from .mission_protocol import link_clock
+
     clock = link_clock(link)
     for attempt in range(retries + 1):
         if attempt:

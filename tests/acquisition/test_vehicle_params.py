@@ -237,3 +237,16 @@ def test_a_vehicle_that_does_not_answer_is_said_so() -> None:
         (status,) = check_parameters(link, [RTL_AUTOLAND], apply=True, timeout_s=0.2, retries=1)
     assert status.value is None and not status.ok
     assert "could not be read" in status.describe()
+
+
+def test_the_requirements_load_no_mavlink() -> None:
+    """A plan's summary asks for them: importing them must not pull pymavlink in."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys; from acquisition.vehicle_params import required_parameters; "
+        "print(any(m.startswith('pymavlink') for m in sys.modules))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"
