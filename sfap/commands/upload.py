@@ -93,6 +93,13 @@ def open_link(
             # the same kind of error (a bad URL or key file stays bad usage), with the note
             raise type(error)(join_sentences(str(error), nothing_sent_note)) from error
         raise
+    except KeyboardInterrupt as stop:
+        if not nothing_sent_note:
+            raise
+        raise MissionInterruptedError(
+            join_sentences(f"interrupted (Ctrl-C) while connecting to {url}", nothing_sent_note),
+            mission_state=MissionState.UNCHANGED,
+        ) from stop
 
 
 class ProgressBars:
@@ -211,7 +218,13 @@ def command(
         ) as link,
         progress_bars() as bars,
     ):
-        far = _far_from_home(link, mission, max_home_distance_m)
+        try:
+            far = _far_from_home(link, mission, max_home_distance_m)
+        except KeyboardInterrupt as stop:
+            raise MissionInterruptedError(
+                f"upload to {link.url} interrupted (Ctrl-C) before any item was sent",
+                mission_state=MissionState.UNCHANGED,
+            ) from stop
         try:
             result = upload_mission(
                 link,

@@ -348,3 +348,20 @@ def test_ctrl_c_mid_upload_says_what_the_vehicle_holds(tmp_path: Path) -> None:
     # ArduPilot wrote the new items as they came: the vehicle holds neither mission whole
     assert verify_readback(old, stored, Autopilot.ARDUPILOT, None) != []
     assert verify_readback(mission(120).items, stored, Autopilot.ARDUPILOT, None) != []
+
+
+def test_ctrl_c_while_connecting_says_nothing_was_sent(tmp_path: Path) -> None:
+    if signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
+        pytest.skip("SIGINT is not Python's KeyboardInterrupt here")
+    path = write_plan(mission(), tmp_path / "m.plan")
+    with socket.socket() as silent:  # a TCP peer that never says a word
+        silent.bind(("127.0.0.1", 0))
+        silent.listen(1)
+        port = silent.getsockname()[1]
+        timer = threading.Timer(1.0, lambda: os.kill(os.getpid(), signal.SIGINT))
+        timer.start()
+        code, _, err = run("upload", str(path), "--connect", f"tcp://127.0.0.1:{port}", *FAST)
+        timer.join()
+    assert code == 130
+    assert f"interrupted (Ctrl-C) while connecting to tcp://127.0.0.1:{port}" in err
+    assert err.count("mission is unchanged") == 1 and ".." not in err and "Traceback" not in err
