@@ -44,7 +44,7 @@ def _defaults(autopilot: Autopilot, vehicle_type: VehicleType) -> dict[str, _Par
     if autopilot is not Autopilot.ARDUPILOT:
         return {}
     params = {"CAM1_TYPE": _Param(1.0, M.MAV_PARAM_TYPE_INT8)}
-    if vehicle_type in (VehicleType.FIXED_WING, VehicleType.VTOL):  # the ArduPlane build
+    if vehicle_type is VehicleType.FIXED_WING:  # ArduPlane (this simulator's VTOL is a quadrotor)
         params["RTL_AUTOLAND"] = _Param(0.0, M.MAV_PARAM_TYPE_INT8)
     return params
 

@@ -94,7 +94,7 @@ def ardupilot_store(item: WireItem, vehicle_type: VehicleType) -> WireItem | int
       the altitude in whole centimetres (``alt = packet.z * 100.0f``, an int32: truncated);
       the frame reads back plain (GLOBAL 0, GLOBAL_RELATIVE_ALT 3, GLOBAL_TERRAIN_ALT 10);
       other commands read back with frame 0 and x = y = z = 0 unless the command stores them;
-    - NAV_WAYPOINT: ArduPlane (the FIXED_WING and VTOL builds) keeps the acceptance and pass
+    - NAV_WAYPOINT: ArduPlane (FIXED_WING here) keeps the acceptance and pass
       radii as bytes (``MIN(0xFF, (uint16_t)param)``) and drops the hold time; Copter keeps
       the hold time as ``p1`` (whole seconds) and drops the radii;
     - NAV_TAKEOFF, NAV_LAND: ``p1 = param1`` (pitch; abort altitude); NAV_LAND keeps only the
@@ -124,7 +124,10 @@ def ardupilot_store(item: WireItem, vehicle_type: VehicleType) -> WireItem | int
     land_ccw = not math.isnan(item.param4) and item.param4 < 0  # NAV_LAND: isnan checked first
     p1, p2, p3, p4 = (0.0 if math.isnan(v) else v for v in params)
     cmd = item.command
-    plane = vehicle_type in (VehicleType.FIXED_WING, VehicleType.VTOL)  # the ArduPlane build
+    # The ArduPlane build. A real quadplane (VTOL) runs ArduPlane too, but this simulator's VTOL
+    # flies and announces itself as a quadrotor (HEARTBEAT MAV_TYPE_QUADROTOR), so it stores
+    # as ArduCopter, as the ground station that hears it expects.
+    plane = vehicle_type is VehicleType.FIXED_WING
     out1 = out2 = out3 = out4 = 0.0
     x = y = 0
     z = 0.0
