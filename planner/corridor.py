@@ -238,6 +238,7 @@ def _lay_out(
             index=index, kind=PassKind.NADIR, name=name, direction_deg=bearing, tilt_deg=0.0,
             look_heading_deg=None, rect=rect, trigger_distance_m=trigger_m, line_spacing_m=spacing_m,
             segments=segments, near_gsd_cm=near_gsd, far_gsd_cm=far_gsd, centre_gsd_cm=gsd_cm,
+            front_overlap_pct=survey.front_overlap_pct, side_overlap_pct=survey.side_overlap_pct,
         )  # fmt: skip
 
     bearings: list[float] = []

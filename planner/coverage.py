@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import shapely
@@ -20,7 +21,9 @@ from numpy.typing import NDArray
 from shapely.geometry import MultiPolygon, Polygon
 
 from .exposure import FrameRectangle
-from .lines import Segment
+
+if TYPE_CHECKING:  # planner.lines counts the views of its segments with this module
+    from .lines import Segment
 
 _MAX_POINTS = 1_000_000
 

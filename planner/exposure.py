@@ -21,7 +21,7 @@ import numpy as np
 import shapely
 
 from .camera import Camera, Orientation
-from .footprint import footprint_corners
+from .footprint import footprint_corners, motion_gsd_cm
 
 #: Image measurement precision assumed for the expected depth precision, pixels.
 SIGMA_IMAGE_PX = 0.5
@@ -156,6 +156,31 @@ def exposure_interval_s(air_base: float, ground_speed_m_s: float) -> float:
 def max_speed_for_trigger_m_s(air_base: float, min_trigger_interval_s: float) -> float:
     """Fastest ground speed at which the camera keeps up with one photo per air base."""
     return air_base / min_trigger_interval_s
+
+
+def blur_speed_limit_m_s(
+    camera: Camera,
+    orientation: Orientation,
+    max_blur_px: float,
+    alt_agl_m: float,
+    tilt_deg: float,
+    direction_deg: float,
+    look_heading_deg: float | None,
+) -> float | None:
+    """The fastest ground speed whose motion blur stays within ``max_blur_px`` on a pass (None:
+    no shutter time known), from the finest GSD along the motion (planner.footprint.motion_gsd_cm:
+    an oblique flown toward or away from where it looks moves along the image's tilted axis;
+    bearings in one frame, degrees)."""
+    if camera.shutter_s is None:
+        return None
+    along_look = False
+    if look_heading_deg is not None:
+        off = abs((direction_deg - look_heading_deg + 90.0) % 180.0 - 90.0)  # 0: along, 90: across
+        along_look = off < 45.0
+    gsd = motion_gsd_cm(
+        camera, alt_agl_m, tilt_deg, along_look, orientation_along_y=orientation is Orientation.LANDSCAPE
+    )
+    return max_speed_for_blur_m_s(gsd, camera.shutter_s, max_blur_px)
 
 
 def max_speed_for_blur_m_s(gsd_along_cm: float, shutter_s: float, max_blur_px: float) -> float:

@@ -29,12 +29,15 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .errors import SpecError
 from .mission import MavCmd, MavFrame, MissionItem, VehicleType
-from .spec import MissionSpec
+
+if TYPE_CHECKING:  # planner.spec checks the fixed-wing keys with this module's functions
+    from .spec import MissionSpec
 
 #: Standard gravity, m/s2.
 G_M_S2 = 9.80665

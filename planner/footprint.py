@@ -137,6 +137,42 @@ def pixel_gsd_cm(camera: Camera, height_m: float, tilt_deg: float, x_mm: float, 
     return 100.0 * float(max(step_x, step_y))
 
 
+def motion_gsd_cm(
+    camera: Camera, height_m: float, tilt_deg: float, motion_along_look: bool, orientation_along_y: bool
+) -> float:
+    """The finest GSD along the direction of motion in a frame over flat ground (cm): what motion
+    blur is measured in. Nadir: the pixel axis the lines are flown along (``orientation_along_y``:
+    the image's y axis). A tilted frame flown toward or away from where it looks
+    (``motion_along_look``) moves along the image's y axis, whose ground step is finest at the
+    middle of the near edge; flown across the look direction, along the x axis, finest there too."""
+    if tilt_deg == 0.0:
+        return camera.gsd_y_cm(height_m) if orientation_along_y else camera.gsd_x_cm(height_m)
+    step_x, step_y = pixel_steps_cm(camera, height_m, tilt_deg, 0.0, camera.sensor_height_mm / 2.0)
+    return step_y if motion_along_look else step_x
+
+
+def pixel_steps_cm(
+    camera: Camera, height_m: float, tilt_deg: float, x_mm: float, y_mm: float
+) -> tuple[float, float]:
+    """The ground length (cm, flat ground) of one pixel step along the image's x and along its y
+    at sensor position (x_mm right, y_mm down from the centre): rays cast through the pixel's
+    edges."""
+    rotation = camera_axes(0.0, tilt_deg)[0]
+    px, py, f = camera.pixel_pitch_x_mm, camera.pixel_pitch_y_mm, camera.focal_length_mm
+
+    def ground(xs: float, ys: float) -> NDArray[np.float64]:
+        ray = rotation @ np.array([xs, ys, f])
+        if -ray[2] <= 1e-12 * f:
+            raise SpecError(
+                f"tilt {tilt_deg:.1f} deg looks at or above the horizon at the frame's edge; lower tilt_deg"
+            )
+        return np.asarray(ray[:2] * height_m / -ray[2], float)
+
+    step_x = np.linalg.norm(ground(x_mm + px / 2, y_mm) - ground(x_mm - px / 2, y_mm))
+    step_y = np.linalg.norm(ground(x_mm, y_mm + py / 2) - ground(x_mm, y_mm - py / 2))
+    return 100.0 * float(step_x), 100.0 * float(step_y)
+
+
 def near_far_gsd_cm(camera: Camera, height_m: float, tilt_deg: float) -> tuple[float, float]:
     """Finest and coarsest GSD in a frame over flat ground (the coarser pixel axis).
 

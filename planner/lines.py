@@ -35,6 +35,7 @@ import shapely
 from shapely.geometry import LineString, MultiPolygon, Polygon, box
 
 from .area import polygon_parts
+from .coverage import boundary_points, grid_points, view_counts
 from .exposure import FrameRectangle
 
 #: Extra stations beyond each unblocked end of a run: the area's edges are then seen by three
@@ -404,8 +405,6 @@ def _fill_stereo(
     forward overlap gives three (beside exclusions, in the gaps a line leaves around them, where a
     short line was dropped, in thin parts): each such part, found on a grid of the area and
     along its edges, gets a run of its own (with its end stations, so enough views)."""
-    from .coverage import boundary_points, grid_points, view_counts
-
     cell = min(trigger_distance_m, rect.across_m) / 4.0
     points, cell = grid_points(area, cell)
     points = np.vstack([points, boundary_points(area, min(cell, 1.0))])

@@ -1,18 +1,16 @@
-"""From ordered camera-on segments to mission items and the stations the vehicle will shoot.
+"""The survey's flight path (planner.flight_path), from the passes' camera-on segments: line
+order, routing around no-fly zones, a plane's turns, take-off and landing; then the stations and
+the flight time read from it, and its mission items (planner.mission_items).
 
-Items per segment, distance triggering (as QGroundControl with "images in turnarounds" off,
-REFERENCES.md section 2): [transit waypoints around no-fly zones], [gimbal command when the pose
-changes], WP(lead-in), WP(camera on) + DO_SET_CAM_TRIGG_DIST(d, 0, 1), WP(camera off) +
-DO_SET_CAM_TRIGG_DIST(0, 0, 0), WP(lead-out). The trigger fires once on reaching the camera-on
-point (param 3 = 1), then every d metres; the camera-off point lies half a spacing past the last
-station, so the photo count is exactly the station count. d is the run's spacing in the
+Each line is flown [transit around no-fly zones] -> entry (the lead-in's start) -> camera on ->
+camera off (half a spacing past the last station, so the photo count is exactly the station
+count) -> exit (the lead-out's end); the trigger distance is the run's spacing in the
 autopilot's own measure, less half a loop step (planner.trigger). Runs of one line that follow
 each other (a long line cut by planner.trigger's run limit) have no lead-in or lead-out between
-them. Hover triggering: WP(station, hold) +
-IMAGE_START_CAPTURE(0, 0, 1) at every station.
+them. Hover triggering: a held station at every photo.
 
 Altitudes are relative to home; over flat ground at the home's elevation they equal the height
-above ground.
+above ground (planner.terrain_follow reshapes them over a DEM).
 """
 
 from __future__ import annotations
@@ -20,7 +18,8 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
@@ -30,13 +29,18 @@ from . import trigger as trig
 from .errors import PlanningError
 from .exposure import FrameRectangle, from_pass_frame, up_bearing_deg
 from .fixed_wing import FixedWing, loop_turn
+from .flight_path import CameraPose, FlightPath, PathPoint, PathRun, Role
 from .footprint import footprint_corners
 from .geo import LocalFrame
 from .lines import Segment
-from .mission import Autopilot, HomePosition, Mission, MissionItem, VehicleType
+from .mission import HomePosition, Mission, VehicleType
+from .mission_items import MissionEmitter, wrap180
 from .plan import FlightLine, PassKind, Stations
 from .route import Router, boustrophedon, nearest_start, polyline_length_m
 from .spec import MissionSpec, TriggerMode
+
+if TYPE_CHECKING:
+    from .terrain_follow import CastOverlap
 
 #: Acceleration assumed for the time lost at each stop or sharp turn of a multirotor, m/s2.
 _MULTIROTOR_ACCEL_M_S2 = 2.0
@@ -63,34 +67,30 @@ class PassPlan:
     centre_gsd_cm: float
     #: Height of this pass when it differs from the mission's (multi-scale blocks), metres.
     alt_agl_m: float | None = None
+    #: The overlaps the spec asks of this pass (percent): over a DEM they must hold everywhere.
+    front_overlap_pct: float | None = None
+    side_overlap_pct: float | None = None
 
 
 @dataclass(frozen=True, kw_only=True)
 class BuiltMission:
+    """A flight path with what is read from it: the mission items, the stations, the track and
+    the flight's length and time."""
+
+    path: FlightPath
+    emitter: MissionEmitter
     mission: Mission
     stations: Stations
-    lines: dict[int, tuple[FlightLine, ...]]
     path_xy_m: NDArray[np.float64]
     path_lonlat_deg: NDArray[np.float64]
     flight_distance_m: float
     flight_time_s: float
-    path_s_m: NDArray[np.float64]  # distance flown to each path point
-    path_item_index: tuple[int | None, ...]  # the mission item of each path point (None: home)
-    station_s_m: NDArray[np.float64]  # distance flown to each station
+    #: Over a DEM: each nadir pass's smallest overlaps, from the footprints cast on it.
+    cast_overlaps: tuple[CastOverlap, ...] = ()
 
-
-@dataclass
-class _Columns:
-    pass_index: list[NDArray[np.int32]] = field(default_factory=list)
-    line_index: list[NDArray[np.int32]] = field(default_factory=list)
-    x: list[NDArray[np.float64]] = field(default_factory=list)
-    y: list[NDArray[np.float64]] = field(default_factory=list)
-    heading: list[NDArray[np.float64]] = field(default_factory=list)
-    look: list[NDArray[np.float64]] = field(default_factory=list)
-    up: list[NDArray[np.float64]] = field(default_factory=list)
-    tilt: list[NDArray[np.float64]] = field(default_factory=list)
-    gsd: list[NDArray[np.float64]] = field(default_factory=list)
-    alt: list[NDArray[np.float64]] = field(default_factory=list)
+    @property
+    def lines(self) -> dict[int, tuple[FlightLine, ...]]:
+        return self.path.lines
 
 
 def build_mission(
@@ -106,10 +106,65 @@ def build_mission(
     true_north_grid_deg: float = 0.0,
     fixed_wing: FixedWing | None = None,
 ) -> BuiltMission:
-    """Items, stations and path for the passes in order. Geometry is in grid bearings;
-    headings in the stations and lines are reported as true bearings. With ``fixed_wing``
-    the lines are ordered, turned, entered and left as the plane can fly them, and the
-    mission takes off and lands as a plane does (planner.fixed_wing)."""
+    """The flight path of the passes in order, and what is read from it. Geometry is in grid
+    bearings; headings in the stations and lines are reported as true bearings. With
+    ``fixed_wing`` the lines are ordered, turned, entered and left as the plane can fly them, and
+    the mission takes off and lands as a plane does (planner.fixed_wing)."""
+    path = build_path(
+        spec=spec, frame=frame, home_xy=home_xy, alt_agl_m=alt_agl_m, speed_m_s=speed_m_s,
+        passes=passes, zones_xy=zones_xy, true_north_grid_deg=true_north_grid_deg, fixed_wing=fixed_wing,
+    )  # fmt: skip
+    stations = path_stations(spec, frame, alt_agl_m, path)
+    return read_path(path, stations, spec=spec, frame=frame, home=home, alt_agl_m=alt_agl_m,
+                     speed_m_s=speed_m_s, fixed_wing=fixed_wing)  # fmt: skip
+
+
+def read_path(
+    path: FlightPath,
+    stations: Stations,
+    *,
+    spec: MissionSpec,
+    frame: LocalFrame,
+    home: HomePosition,
+    alt_agl_m: float,
+    speed_m_s: float,
+    fixed_wing: FixedWing | None,
+) -> BuiltMission:
+    """The mission items, track, length and flight time of ``path`` (its ``stations`` given)."""
+    vehicle = spec.vehicle
+    path_xy = path.track_xy_m()
+    lon, lat = frame.to_lonlat(path_xy[:, 0], path_xy[:, 1])
+    flight_time = _flight_time_s(
+        path_xy, path.transit_legs(), speed_m_s, spec.survey.transit_speed_m_s, alt_agl_m,
+        vehicle.takeoff_alt_m, vehicle.climb_rate_m_s, path.holds_s(), vehicle.type,
+        path.stops(), alt_sequence_m=list(path.pass_alts_m),
+    )  # fmt: skip
+    emitter = MissionEmitter(spec=spec, frame=frame, speed_m_s=speed_m_s, fixed_wing=fixed_wing)
+    return BuiltMission(
+        path=path,
+        emitter=emitter,
+        mission=emitter(path, home),
+        stations=stations,
+        path_xy_m=path_xy,
+        path_lonlat_deg=np.column_stack([lon, lat]),
+        flight_distance_m=polyline_length_m(path_xy),
+        flight_time_s=flight_time,
+    )
+
+
+def build_path(
+    *,
+    spec: MissionSpec,
+    frame: LocalFrame,
+    home_xy: tuple[float, float],
+    alt_agl_m: float,
+    speed_m_s: float,
+    passes: list[PassPlan],
+    zones_xy: tuple[Polygon, ...],
+    true_north_grid_deg: float = 0.0,
+    fixed_wing: FixedWing | None = None,
+) -> FlightPath:
+    """The flight path (planner.flight_path) of the passes in order (build_mission)."""
     survey = spec.survey
     vehicle = spec.vehicle
     clearance = survey.exclusion_clearance_m
@@ -121,8 +176,9 @@ def build_mission(
         lon, lat = frame.to_lonlat(p[0], p[1])
         return float(lat), float(lon)
 
-    items: list[MissionItem] = [MissionItem.takeoff(home.lat_deg, home.lon_deg, vehicle.takeoff_alt_m)]
     turnaround_m = survey.turnaround_m
+    takeoff_target: tuple[float, float] | None = None
+    takeoff_pitch: float | None = None
     if fixed_wing is not None:
         turnaround_m = max(turnaround_m, fixed_wing.lead_in_m)
         first_entry = passes[0].segments[0] if passes and passes[0].segments else None
@@ -132,64 +188,28 @@ def build_mission(
                 np.array([first_entry.u_first_m]), np.array([first_entry.v_m]), passes[0].direction_deg
             )
             aim = (float(fx[0]), float(fy[0]))
-        t_lat, t_lon = to_lonlat(fixed_wing.takeoff_point(home_xy, aim))
-        items[0] = MissionItem(
-            command=items[0].command, param1=fixed_wing.takeoff_pitch_deg, param5=t_lat, param6=t_lon,
-            param7=vehicle.takeoff_alt_m,
-        )  # fmt: skip
+        takeoff_target = fixed_wing.takeoff_point(home_xy, aim)
+        takeoff_pitch = fixed_wing.takeoff_pitch_deg
     elif vehicle.type is VehicleType.FIXED_WING:
-        items[0] = MissionItem(
-            command=items[0].command, param1=15.0, param5=home.lat_deg, param6=home.lon_deg,
-            param7=vehicle.takeoff_alt_m,
-        )  # fmt: skip
-    items.append(MissionItem.change_speed(speed_m_s))
-    gimbal_state: tuple[float, float] | None = None
-
-    def gimbal(pitch_deg: float, yaw_deg: float, look_true_deg: float | None = None) -> None:
-        """Pitch, yaw relative to the heading; PX4 obliques take ``look_true_deg`` (true bearing)
-        as an earth-frame yaw instead."""
-        nonlocal gimbal_state
-        px4_yaw = None if look_true_deg is None else _wrap180(look_true_deg)
-        state = (
-            pitch_deg,
-            px4_yaw if vehicle.autopilot is Autopilot.PX4 and px4_yaw is not None else yaw_deg,
-        )
-        if gimbal_state == state:
-            return
-        gimbal_state = state
-        if vehicle.autopilot is Autopilot.PX4:
-            if px4_yaw is not None:
-                items.append(MissionItem.gimbal_manager_pitch_yaw(pitch_deg, px4_yaw, yaw_earth_frame=True))
-            else:
-                items.append(MissionItem.gimbal_manager_pitch_yaw(pitch_deg, yaw_deg))
-        else:
-            items.append(MissionItem.gimbal_pitch_yaw(pitch_deg, yaw_deg))
-
-    gimbal(-90.0, 0.0)  # nothing else points the camera down (QGC issue 8694)
-
-    path: list[tuple[float, float]] = [home_xy]
-    path_s: list[float] = [0.0]  # distance flown along the path to each point, metres
-    path_item: list[int | None] = [None]  # the mission item of each path point (None: home)
-    station_s: list[NDArray[np.float64]] = []  # distance along the path of every station
-    transit_flags: list[bool] = []  # per leg of `path`: True when camera-off transit
-    holds_s = 0.0
+        takeoff_pitch = 15.0
+    nadir = CameraPose(pitch_deg=-90.0, yaw_deg=0.0)
+    # nothing else points the camera down (QGC issue 8694)
+    points: list[PathPoint] = [PathPoint(xy=home_xy, role=Role.TAKE_OFF, speed_m_s=speed_m_s, camera=nadir)]
     position = home_xy
     last_heading: float | None = None  # grid bearing of the last line flown (fixed-wing turns)
-    columns = _Columns()
+    runs: list[PathRun] = []
     lines: dict[int, tuple[FlightLine, ...]] = {}
     alt_sequence: list[float] = []  # the height of each pass flown, for the climbs in the time
 
-    def waypoint(p: tuple[float, float], hold_s: float = 0.0, transit: bool = True) -> None:
+    def add(p: tuple[float, float], role: Role, **kw: object) -> int:
+        """Append a point (one on the previous point, not held, adds no leg); its index."""
         nonlocal position
-        if path and math.dist(path[-1], p) < 1e-3 and hold_s == 0.0:
-            return
-        lat, lon = to_lonlat(p)
-        items.append(MissionItem.waypoint(lat, lon, alt, hold_s=hold_s))
-        path_s.append(path_s[-1] + math.dist(path[-1], p))
-        path_item.append(len(items) - 1)
-        path.append(p)
-        transit_flags.append(transit)
-        position = p
+        hold = float(kw.get("hold_s", 0.0))  # type: ignore[arg-type]
+        on_previous = math.dist(position, p) < 1e-3 and hold == 0.0
+        points.append(PathPoint(xy=p, role=role, alt_m=alt, on_previous=on_previous, **kw))  # type: ignore[arg-type]
+        if not on_previous:
+            position = p
+        return len(points) - 1
 
     for pp in passes:
         segs = pp.segments
@@ -218,8 +238,9 @@ def build_mission(
             seg = dataclasses.replace(segs[k], direction=direction)
             pts = _segment_points(seg, direction, pp, turnaround_m, router)
             heading = (pp.direction_deg + (0.0 if direction > 0 else 180.0)) % 360.0
+            where = {"pass_index": pp.index, "line_index": seg.row}
             if fixed_wing is not None and last_heading is not None:
-                turn = _wrap180(heading - last_heading)
+                turn = wrap180(heading - last_heading)
                 loop = loop_turn(position, last_heading, pts["entry"], fixed_wing.radius_m)
                 if abs(abs(turn) - 180.0) < 1.0 and loop:
                     legs = [position, *loop]
@@ -230,47 +251,46 @@ def build_mission(
                             f"zone; give the zones more room, fly slower, or allow a steeper bank"
                         )
                     for p in loop if clear else []:  # square corners blocked: the transit goes around
-                        waypoint(p)
+                        add(p, Role.LOOP_TURN, **where)
             last_heading = heading
             # transit to the entry, around no-fly zones
             for p in router.path(position, pts["entry"])[1:-1]:
-                waypoint(p)
+                add(p, Role.TRANSIT, **where)
             if pp.look_heading_deg is not None:
-                gimbal(
-                    -(90.0 - pp.tilt_deg),
-                    _wrap180(pp.look_heading_deg - heading),
-                    (pp.look_heading_deg - true_north_grid_deg) % 360.0,
+                pose = CameraPose(
+                    pitch_deg=-(90.0 - pp.tilt_deg),
+                    yaw_deg=wrap180(pp.look_heading_deg - heading),
+                    look_true_deg=(pp.look_heading_deg - true_north_grid_deg) % 360.0,
                 )
             else:
-                gimbal(-90.0, 0.0)
-            waypoint(pts["entry"])
-            if survey.transit_speed_m_s is not None:
-                items.append(MissionItem.change_speed(speed_m_s))
+                pose = nadir
+            transit_speed = survey.transit_speed_m_s
+            back_to_survey_speed = speed_m_s if transit_speed is not None else None
+            add(pts["entry"], Role.ENTRY, camera=pose, speed_m_s=back_to_survey_speed, **where)
             u_stations = seg.station_u()
             v_stations = np.full_like(u_stations, seg.v_m)
             sx, sy = from_pass_frame(u_stations, v_stations, pp.direction_deg)
+            run_at: dict[str, object]
             if hover:
-                hover_s = []
-                for x, y in zip(sx, sy, strict=True):
-                    waypoint((float(x), float(y)), hold_s=survey.hover_hold_s, transit=False)
-                    hover_s.append(path_s[-1])
-                    items.append(MissionItem.image_start_capture())
-                    holds_s += survey.hover_hold_s
-                station_s.append(np.asarray(hover_s, float))
+                held = tuple(
+                    add((float(x), float(y)), Role.STATION, hold_s=survey.hover_hold_s, **where)
+                    for x, y in zip(sx, sy, strict=True)
+                )
+                run_at = {"station_points": held}
             else:
-                waypoint(pts["start"], transit=True)
-                station_s.append(path_s[-1] + np.abs(u_stations - u_stations[0]))
                 (lat0, lon0), (lat1, lon1) = to_lonlat(pts["start"]), to_lonlat(pts["stop"])
                 ratio = trig.distance_ratio(
                     (lat0, lat1), (lon0, lon1), math.dist(pts["start"], pts["stop"]), vehicle.autopilot
                 )
                 commanded = trig.commanded_distance_m(seg.spacing_m, ratio, speed_m_s)
-                items.append(MissionItem.cam_trigger_distance(commanded, trigger_now=True))
-                waypoint(pts["stop"], transit=False)
-                items.append(MissionItem.cam_trigger_distance(0.0, trigger_now=False))
-            waypoint(pts["exit"])
-            if survey.transit_speed_m_s is not None:
-                items.append(MissionItem.change_speed(survey.transit_speed_m_s))
+                start = add(
+                    pts["start"], Role.TRIGGER_START, trigger_spacing_m=seg.spacing_m,
+                    trigger_command_m=commanded, **where,
+                )  # fmt: skip
+                run_at = {"start_point": start, "offsets_m": np.abs(u_stations - u_stations[0])}
+                add(pts["stop"], Role.TRIGGER_STOP, **where)
+            add(pts["exit"], Role.EXIT, speed_m_s=transit_speed, **where)
+            true_heading = (heading - true_north_grid_deg) % 360.0
             pass_lines.append(
                 FlightLine(
                     pass_index=pp.index,
@@ -279,77 +299,42 @@ def build_mission(
                     end_xy_m=pts["stop"],
                     entry_xy_m=pts["entry"],
                     exit_xy_m=pts["exit"],
-                    heading_deg=(heading - true_north_grid_deg) % 360.0,
+                    heading_deg=true_heading,
                 )
             )
-            n = seg.count
-            columns.pass_index.append(np.full(n, pp.index, np.int32))
-            columns.line_index.append(np.full(n, seg.row, np.int32))
-            columns.x.append(sx)
-            columns.y.append(sy)
-            true_heading = (heading - true_north_grid_deg) % 360.0
-            columns.heading.append(np.full(n, true_heading))
             if pp.look_heading_deg is not None:
-                columns.look.append(np.full(n, (pp.look_heading_deg - true_north_grid_deg) % 360.0))
-                columns.up.append(np.full(n, pp.look_heading_deg))
+                look, up = (pp.look_heading_deg - true_north_grid_deg) % 360.0, pp.look_heading_deg
             else:
-                columns.look.append(np.full(n, true_heading))
-                columns.up.append(np.full(n, up_bearing_deg(heading, spec.orientation)))
-            columns.tilt.append(np.full(n, pp.tilt_deg))
-            columns.gsd.append(np.full(n, pp.centre_gsd_cm))
-            columns.alt.append(np.full(n, alt))
+                look, up = true_heading, up_bearing_deg(heading, spec.orientation)
+            runs.append(
+                PathRun(
+                    pass_index=pp.index, line_index=seg.row, x_m=sx, y_m=sy, heading_true_deg=true_heading,
+                    look_true_deg=look, up_deg=up, tilt_deg=pp.tilt_deg, gsd_cm=pp.centre_gsd_cm, alt_m=alt,
+                    **run_at,  # type: ignore[arg-type]
+                )
+            )  # fmt: skip
         lines[pp.index] = tuple(pass_lines)
 
     if fixed_wing is not None:
         # to the approach point, around no-fly zones, then the landing sequence (planner.fixed_wing)
         approach = fixed_wing.approach_point(home_xy, position)
         for p in router.path(position, approach)[1:-1]:
-            waypoint(p)
-        items.extend(fixed_wing.landing_items(to_lonlat(approach), (home.lat_deg, home.lon_deg)))
-        path_s.append(path_s[-1] + math.dist(path[-1], approach))
-        path_item.append(None)  # the approach keeps its altitude (the glide slope's top)
-        path.append(approach)
-        transit_flags.append(True)
+            add(p, Role.TRANSIT)
+        # the approach keeps its altitude (the glide slope's top)
+        points.append(PathPoint(xy=approach, role=Role.APPROACH))
     else:
         # home, around no-fly zones, then RTL
         for p in router.path(position, home_xy)[1:-1]:
-            waypoint(p)
-        items.append(MissionItem.return_to_launch())
-    path_s.append(path_s[-1] + math.dist(path[-1], home_xy))
-    path_item.append(None)
-    path.append(home_xy)
-    transit_flags.append(True)
-
-    stations = _stations(spec, frame, alt_agl_m, columns)
-    path_xy = np.asarray(path, float)
-    lon, lat = frame.to_lonlat(path_xy[:, 0], path_xy[:, 1])
-    path_lonlat = np.column_stack([lon, lat])
-    distance = polyline_length_m(path_xy)
-    flight_time = _flight_time_s(
-        path_xy, transit_flags, speed_m_s, survey.transit_speed_m_s, alt_agl_m,
-        vehicle.takeoff_alt_m, vehicle.climb_rate_m_s, holds_s, vehicle.type,
-        len(stations) if hover else 0, alt_sequence_m=alt_sequence,
-    )  # fmt: skip
-    mission = Mission(
-        items=tuple(items),
-        home=home,
-        autopilot=vehicle.autopilot,
-        vehicle_type=vehicle.type,
-        cruise_speed_m_s=survey.transit_speed_m_s or speed_m_s,
-        hover_speed_m_s=speed_m_s,
-        metadata={"name": spec.name, "generator": "sfap"},
-    )
-    return BuiltMission(
-        mission=mission,
-        stations=stations,
+            add(p, Role.TRANSIT)
+    points.append(PathPoint(xy=home_xy, role=Role.LANDING))
+    return FlightPath(
+        points=tuple(points),
+        runs=tuple(runs),
         lines=lines,
-        path_xy_m=path_xy,
-        path_lonlat_deg=path_lonlat,
-        flight_distance_m=distance,
-        flight_time_s=flight_time,
-        path_s_m=np.asarray(path_s, float),
-        path_item_index=tuple(path_item),
-        station_s_m=np.concatenate(station_s) if station_s else np.zeros(0),
+        pass_alts_m=tuple(alt_sequence),
+        home_xy=home_xy,
+        takeoff_target_xy=takeoff_target,
+        takeoff_pitch_deg=takeoff_pitch,
     )
 
 
@@ -376,14 +361,19 @@ def _segment_points(
     return {"entry": entry, "start": start, "stop": stop, "exit": exit_}
 
 
-def _stations(spec: MissionSpec, frame: LocalFrame, alt_agl_m: float, c: _Columns) -> Stations:
-    def cat(parts: list[NDArray], dtype: type) -> NDArray:
+def path_stations(spec: MissionSpec, frame: LocalFrame, alt_agl_m: float, path: FlightPath) -> Stations:
+    """The stations of the path's runs, in flight order, over flat ground."""
+
+    def col(get: object, dtype: type) -> NDArray:
+        parts = [np.full(len(r.x_m), get(r)) for r in path.runs]  # type: ignore[operator]
         return np.concatenate(parts).astype(dtype) if parts else np.zeros(0, dtype)
 
-    x, y = cat(c.x, float), cat(c.y, float)
-    up, tilt = cat(c.up, float), cat(c.tilt, float)
+    runs = path.runs
+    x = np.concatenate([r.x_m for r in runs]).astype(float) if runs else np.zeros(0)
+    y = np.concatenate([r.y_m for r in runs]).astype(float) if runs else np.zeros(0)
+    up, tilt = col(lambda r: r.up_deg, float), col(lambda r: r.tilt_deg, float)
     n = x.shape[0]
-    alt = cat(c.alt, float) if c.alt else np.full(n, alt_agl_m)
+    alt = col(lambda r: r.alt_m, float) if runs else np.full(n, alt_agl_m)
     if n:
         corners = footprint_corners(spec.camera, x, y, alt, up, tilt)
         lon, lat = frame.to_lonlat(x, y)
@@ -394,18 +384,18 @@ def _stations(spec: MissionSpec, frame: LocalFrame, alt_agl_m: float, c: _Column
         corners_ll = np.zeros((0, 4, 2))
         lon = lat = np.zeros(0)
     return Stations(
-        pass_index=cat(c.pass_index, np.int32),
-        line_index=cat(c.line_index, np.int32),
+        pass_index=col(lambda r: r.pass_index, np.int32),
+        line_index=col(lambda r: r.line_index, np.int32),
         x_m=x,
         y_m=y,
         lon_deg=np.asarray(lon, float),
         lat_deg=np.asarray(lat, float),
         alt_rel_home_m=alt.copy(),
         alt_agl_m=alt,
-        heading_deg=cat(c.heading, float),
-        look_heading_deg=cat(c.look, float),
+        heading_deg=col(lambda r: r.heading_true_deg, float),
+        look_heading_deg=col(lambda r: r.look_true_deg, float),
         tilt_deg=tilt,
-        gsd_cm=cat(c.gsd, float),
+        gsd_cm=col(lambda r: r.gsd_cm, float),
         footprint_xy_m=corners,
         footprint_lonlat_deg=corners_ll,
     )
@@ -445,8 +435,3 @@ def _flight_time_s(
             sharp = int(np.count_nonzero(turn > _SHARP_TURN_DEG))
             time += (sharp + stops) * speed_m_s / _MULTIROTOR_ACCEL_M_S2
     return time
-
-
-def _wrap180(angle_deg: float) -> float:
-    a = (angle_deg + 180.0) % 360.0 - 180.0
-    return 180.0 if a == -180.0 else a

@@ -38,13 +38,29 @@ def scale_alt_agl_m(spec: MissionSpec, index: int) -> float:
     return alt_m
 
 
-def scale_pass_defs(spec: MissionSpec, direction_deg: float) -> list[dict[str, Any]]:
+#: Two nadir passes whose heights differ by less than this share are the same pass flown twice.
+SAME_HEIGHT_SHARE = 0.05
+
+
+def scale_pass_defs(spec: MissionSpec, direction_deg: float, main_alt_agl_m: float) -> list[dict[str, Any]]:
     """The fields of one extra nadir pass per ``[[survey.scale]]`` (grid bearing ``direction_deg``,
-    that of the main nadir lines)."""
+    that of the main nadir lines). A scale at the main pass's height, or another scale's (within
+    SAME_HEIGHT_SHARE), is refused: it would fly the same photos twice."""
     survey = spec.survey
     out = []
+    heights = [("the main pass", main_alt_agl_m)]
     for k, scale in enumerate(survey.scales):
         alt_m = scale_alt_agl_m(spec, k)
+        for what, other in heights:
+            if abs(alt_m - other) < SAME_HEIGHT_SHARE * max(alt_m, other):
+                gsd = spec.camera.gsd_cm(alt_m)
+                raise SpecError(
+                    f"{spec.source}: [[survey.scale]] {k + 1} flies at {alt_m:.1f} m above ground "
+                    f"(GSD {gsd:.2f} cm), the height of {what} ({other:.1f} m): it would take the same "
+                    f"photos twice; give it a gsd_cm or altitude_agl_m at least "
+                    f"{100 * SAME_HEIGHT_SHARE:g} % away, or remove it"
+                )
+        heights.append((f"[[survey.scale]] {k + 1}", alt_m))
         out.append(
             {
                 "kind": PassKind.NADIR,

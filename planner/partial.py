@@ -1,6 +1,7 @@
 """Plans of part of a plan's lines (a sortie, what is left after a flight cut short): the lines
 chosen are built into a mission, and fitted to the terrain, as the whole plan was
-(planner.sorties, planner.resume)."""
+(planner.sorties, planner.resume). What a sortie or a resume plan chooses is theirs; how a choice
+of lines becomes a plan of its own is here."""
 
 from __future__ import annotations
 
@@ -21,7 +22,7 @@ def plan_layout(plan: SurveyPlan) -> PlanLayout:
     """The layout the plan was built from (its passes, height, speed, DEM); refused for a plan
     that holds none."""
     if plan.layout is None:
-        raise PlanningError("this plan holds no layout to split (plan it with planner.survey.plan_survey)")
+        raise PlanningError("this plan holds no layout to split: plan it again from its mission spec")
     return plan.layout
 
 
@@ -63,14 +64,10 @@ def part_plan(
     vehicle = layout.spec.vehicle
     warnings = tuple(
         limit_warnings(
-            autopilot=vehicle.autopilot,
+            vehicle=vehicle,
             item_count=len(built.mission.items),
             flight_time_s=built.flight_time_s,
-            max_flight_time_min=(
-                vehicle.usable_flight_s / 60.0
-                if sortie and vehicle.usable_flight_s is not None
-                else vehicle.max_flight_time_min
-            ),
+            sortie=sortie,
         )
     )
     summary = dataclasses.replace(

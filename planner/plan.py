@@ -1,4 +1,6 @@
-"""The result of planning a survey: what every writer (formats, map, summary) reads.
+"""The result of planning a survey: what every writer (formats, map, summary) reads. Types only:
+no planning here (that is planner.survey and planner.corridor); the files they are written to and
+read back from are planner.plan_folder.
 
 Geometry is held in the survey's :class:`~planner.geo.LocalFrame` (metres); lon/lat columns
 are filled in once, at the end of planning, so writers never transform coordinates themselves.

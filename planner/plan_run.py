@@ -1,6 +1,7 @@
 """What ``sfap plan`` does, as one library call: a mission spec planned (planner.survey), cut to
 what is left after a flight cut short (planner.resume), split into sorties when the vehicle has
-an endurance (planner.sorties), and its files written (planner.plan_folder)."""
+an endurance (planner.sorties), and its files written (planner.plan_folder). No geometry here:
+only the order of those steps, as the command runs them."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from .errors import InputError
+from .estimate import MAX_PHOTOS, PlanEstimate
 from .plan import SurveyPlan
 from .spec import MissionSpec
 
@@ -71,11 +73,14 @@ def plan_spec(
     *,
     resume_from: int | None = None,
     resume_record: str | os.PathLike[str] | None = None,
+    max_photos: int | None = MAX_PHOTOS,
+    announce: Callable[[PlanEstimate], None] | None = None,
 ) -> PlanRun:
     """Plan the mission spec ``spec_file``; with ``resume_from`` (a station, 0-based in flight
     order) or ``resume_record`` (the folder sfap monitor recorded, or its triggers.csv: after
     the last station it reached) only what is left. Sorties when the spec's vehicle has an
-    endurance."""
+    endurance. A block estimated beyond ``max_photos`` photos is refused at once (planner.estimate);
+    ``announce(estimate)`` is called first, before the planning itself."""
     from .resume import last_station_from_record, resume_plan
     from .spec import load_spec
     from .survey import plan_survey
@@ -83,7 +88,13 @@ def plan_spec(
     if resume_from is not None and resume_record is not None:
         raise InputError("give --resume-from or --resume-record, not both")
     spec = load_spec(Path(spec_file))
-    plan = plan_survey(spec)
+    if announce is not None:
+        from .survey import estimate_survey
+
+        guess = estimate_survey(spec)
+        if guess is not None:
+            announce(guess)
+    plan = plan_survey(spec, max_photos=max_photos)
     if resume_record is not None:
         resume_from = last_station_from_record(plan, Path(resume_record)) + 1
         if resume_from >= len(plan.stations):

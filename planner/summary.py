@@ -10,7 +10,7 @@ from .camera import Orientation
 from .geo import LocalFrame
 from .mission import Autopilot
 from .plan import Summary
-from .spec import MissionSpec
+from .spec import MissionSpec, VehicleSpec
 
 if TYPE_CHECKING:
     from .coverage import ViewShares
@@ -22,6 +22,8 @@ if TYPE_CHECKING:
 #: boards; boards that keep missions on the SD card (BRD_SD_MISSION) hold thousands. PX4 keeps
 #: up to 2,000 items in its dataman (NUM_MISSIONS_SUPPORTED).
 MAX_MISSION_ITEMS = {Autopilot.ARDUPILOT: 650, Autopilot.PX4: 2000}
+#: How each autopilot is named to the user.
+AUTOPILOT_NAMES = {Autopilot.ARDUPILOT: "ArduPilot", Autopilot.PX4: "PX4"}
 #: The share of the area seen by three or more nadir frames a plan promises when its forward
 #: overlap gives three views along a line (>= 2/3); the edges get them from the extra end
 #: stations (planner.lines.END_STATIONS), so only the sampling and exclusions take from it.
@@ -52,11 +54,15 @@ def summarize(
     max_trigger = min(
         ex.max_speed_for_trigger_m_s(p.trigger_distance_m, camera.min_trigger_interval_s) for p in passes
     )
-    max_blur = (
-        ex.max_speed_for_blur_m_s(min(gsd_along, gsd_across), camera.shutter_s, spec.survey.max_blur_px)
-        if camera.shutter_s is not None
-        else None
-    )
+    blur_limits = [  # the limit the planner enforces, per pass
+        ex.blur_speed_limit_m_s(
+            camera, spec.orientation, spec.survey.max_blur_px,
+            p.alt_agl_m if p.alt_agl_m is not None else alt_agl_m,
+            p.tilt_deg, p.direction_deg, p.look_heading_deg,
+        )
+        for p in passes
+    ]  # fmt: skip
+    max_blur = min((b for b in blur_limits if b is not None), default=None)
     max_speed = min(max_trigger, max_blur) if max_blur is not None else max_trigger
     interval = ex.exposure_interval_s(air_base, speed_m_s)
     return Summary(
@@ -107,24 +113,48 @@ def stereo_3_target_pct(air_base_m: float, frame_along_m: float) -> float:
     return STEREO_3_TARGET_PCT if 3.0 * air_base_m <= frame_along_m + 1e-9 else 0.0
 
 
+def one_battery_s(vehicle: VehicleSpec) -> tuple[float, str]:
+    """The one battery model: the longest flight one battery allows (seconds) and what it comes
+    from. ``endurance_s`` (or capacity over current) less the reserve when given, which is also
+    what sorties are cut by (planner.sorties); else ``max_flight_time_min``."""
+    usable = vehicle.usable_flight_s
+    if usable is not None:
+        assert vehicle.endurance_s is not None
+        return usable, f"endurance_s = {vehicle.endurance_s:g} s less its reserve"
+    return vehicle.max_flight_time_min * 60.0, f"max_flight_time_min = {vehicle.max_flight_time_min:g}"
+
+
 def limit_warnings(
-    *, autopilot: Autopilot, item_count: int, flight_time_s: float, max_flight_time_min: float
+    *, vehicle: VehicleSpec, item_count: int, flight_time_s: float, sortie: bool = False
 ) -> list[str]:
-    """What no vehicle of this kind can fly as planned: too many items, too long a flight."""
+    """What the vehicle cannot fly as the plan will be flown: too many items, too long a flight
+    for one battery. A vehicle with an endurance flies a whole plan as sorties, each cut to fit
+    both its battery and the autopilot's memory (planner.sorties), so only a sortie is judged
+    (``sortie``); without one, the mission as planned."""
+    if vehicle.endurance_s is not None and not sortie:
+        return []
     out = []
+    autopilot = vehicle.autopilot
     capacity = MAX_MISSION_ITEMS[autopilot]
+    what = "this sortie" if sortie else "the mission"
     if item_count + 1 > capacity:  # + 1: home is item 0 on ArduPilot and counted by PX4 tools
         out.append(
-            f"the mission has {item_count + 1} items with home, more than {autopilot.value} holds "
-            f"({capacity}, see planner.summary.MAX_MISSION_ITEMS); split the area into smaller "
-            f"blocks, or fly it from a vehicle that stores missions on its SD card"
+            f"{what} has {item_count + 1} items with home, more than {AUTOPILOT_NAMES[autopilot]} holds "
+            f"({capacity} on a board without mission storage on its SD card); give [vehicle] endurance_s "
+            f"to fly it as sorties that each fit, split the area into smaller blocks, or fly it from a "
+            f"vehicle that stores missions on its SD card"
         )
+    battery_s, battery = one_battery_s(vehicle)
     minutes = flight_time_s / 60.0
-    if minutes > max_flight_time_min:
-        flights = math.ceil(minutes / max_flight_time_min)
+    if flight_time_s > battery_s + 1e-6:
+        flights = math.ceil(flight_time_s / battery_s)
         out.append(
-            f"the flight takes {minutes:.0f} min ({minutes / 60.0:.1f} h), more than one battery "
-            f"(max_flight_time_min = {max_flight_time_min:g}); plan at least {flights} flights "
-            f"(split the area), or raise max_flight_time_min in [vehicle] if the vehicle can"
+            f"{what} takes {minutes:.0f} min ({minutes / 60.0:.1f} h), more than one battery "
+            f"({battery_s / 60.0:.0f} min: {battery}); it needs at least {flights} flights: give [vehicle] "
+            f"endurance_s to fly it as sorties, split the area, or raise max_flight_time_min if the "
+            f"vehicle can"
+            if not sortie
+            else f"{what} takes {minutes:.0f} min, more than one battery ({battery_s / 60.0:.0f} min: "
+            f"{battery})"
         )
     return out

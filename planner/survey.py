@@ -1,4 +1,9 @@
-"""Planning a survey: from a mission spec to a :class:`~planner.plan.SurveyPlan`.
+"""Planning a block survey (polygons): from a mission spec to a :class:`~planner.plan.SurveyPlan`.
+
+Where a change belongs (DESIGN.md, "The planner's flow"): a block's layout here; a corridor's in
+planner.corridor; what both share in planner.survey_steps; the flight path and its items in
+planner.mission_builder, planner.flight_path, planner.mission_items; what ``sfap plan`` does
+around a plan (resume, sorties, files) in planner.plan_run.
 
 The steps, each in its own module:
 1. area: load the polygons, remove holes and exclusions (planner.area), project into the
@@ -8,8 +13,10 @@ The steps, each in its own module:
 3. lines: camera-on segments per pass with guaranteed edge coverage (planner.lines);
 4. route: boustrophedon order from the corner nearest the vehicle, transits around no-fly
    zones (planner.route);
-5. mission: the items an autopilot flies, and every station exactly where the trigger plan
-   fires it (planner.mission_builder).
+5. flight path: the lines in order, routed, turned and entered as the vehicle flies them
+   (planner.mission_builder -> planner.flight_path), reshaped over a DEM
+   (planner.terrain_follow), then read: every station exactly where the trigger plan fires
+   it, the flight time, and the items an autopilot flies (planner.mission_items).
 
 The steps a corridor shares (area, height, home, speed, terrain, the plan from the built
 mission) are planner.survey_steps.
@@ -32,6 +39,7 @@ from . import trigger as trig
 from .area import load_polygons
 from .coverage import ViewShares, view_shares
 from .errors import SpecError
+from .estimate import MAX_PHOTOS, PassGeometry, PlanEstimate, estimate, too_large
 from .footprint import near_far_gsd_cm, tilted_gsd_cm
 from .lines import layout_pass
 from .mission import VehicleType
@@ -42,8 +50,10 @@ from .spec import MissionSpec, TriggerMode
 log = logging.getLogger(__name__)
 
 
-def plan_survey(spec: MissionSpec) -> SurveyPlan:
-    """Plan the survey a spec describes. Raises SfapError subclasses with the fix."""
+def plan_survey(spec: MissionSpec, *, max_photos: int | None = MAX_PHOTOS) -> SurveyPlan:
+    """Plan the survey a spec describes. Raises SfapError subclasses with the fix; a block
+    estimated at more than ``max_photos`` photos is refused at once (planner.estimate; None: no
+    limit)."""
     survey = spec.survey
     vehicle = spec.vehicle
     if vehicle.type is VehicleType.FIXED_WING and survey.trigger is TriggerMode.HOVER:
@@ -58,10 +68,68 @@ def plan_survey(spec: MissionSpec) -> SurveyPlan:
         return plan_corridor(spec)
     polygons = load_polygons(spec.area_path)
     exclusions = [p for path in spec.exclude_paths for p in load_polygons(path)]
-    return plan_polygons(spec, polygons, exclusions)
+    return plan_polygons(spec, polygons, exclusions, max_photos=max_photos)
 
 
-def plan_polygons(spec: MissionSpec, polygons: list[Polygon], exclusions: list[Polygon]) -> SurveyPlan:
+def estimate_survey(spec: MissionSpec) -> PlanEstimate | None:
+    """The plan's estimate from its geometry alone (planner.estimate); None for a corridor."""
+    if spec.corridor_width_m is not None:
+        return None
+    polygons = load_polygons(spec.area_path)
+    exclusions = [p for path in spec.exclude_paths for p in load_polygons(path)]
+    site = steps.project_area(spec, polygons, exclusions, what="area")
+    alt_agl_m, _ = steps.flying_height(spec)
+    return estimate(spec, site.area_xy, _pass_geometry(spec, _all_pass_defs(spec, site), alt_agl_m))
+
+
+def _all_pass_defs(spec: MissionSpec, site: steps.ProjectedArea) -> list[steps.PassDef]:
+    """Every pass of the block: nadir, crosshatch, obliques, then the [[survey.scale]] passes."""
+    survey = spec.survey
+    true_north_grid = site.true_north_grid_deg
+    if survey.direction_deg is not None:
+        direction = (survey.direction_deg + true_north_grid) % 180.0
+    else:
+        direction = auto_direction_deg(site.area_xy)
+    pass_defs = _pass_definitions(spec, direction, true_north_grid)
+    if survey.scales:
+        from .multiscale import scale_pass_defs
+
+        if spec.terrain is not None:
+            raise SpecError(
+                f"{spec.source}: [[survey.scale]] passes are not planned over a [terrain] DEM yet; "
+                f"plan each height as its own mission, or remove [terrain]"
+            )
+        alt_agl_m, _ = steps.flying_height(spec)
+        pass_defs += [steps.PassDef(**fields) for fields in scale_pass_defs(spec, direction, alt_agl_m)]
+    return pass_defs
+
+
+def _pass_geometry(spec: MissionSpec, pass_defs: list[steps.PassDef], alt_agl_m: float) -> list[PassGeometry]:
+    out = []
+    for pdef in pass_defs:
+        up = (
+            pdef.look_heading_deg
+            if pdef.look_heading_deg is not None
+            else ex.up_bearing_deg(pdef.direction_deg, spec.orientation)
+        )
+        pass_alt_m = pdef.alt_agl_m if pdef.alt_agl_m is not None else alt_agl_m
+        rect = ex.frame_rectangle(spec.camera, pass_alt_m, pdef.direction_deg, up, pdef.tilt_deg)
+        out.append(
+            PassGeometry(
+                direction_deg=pdef.direction_deg, rect=rect, front_overlap_pct=pdef.front_overlap_pct,
+                side_overlap_pct=pdef.side_overlap_pct,
+            )
+        )  # fmt: skip
+    return out
+
+
+def plan_polygons(
+    spec: MissionSpec,
+    polygons: list[Polygon],
+    exclusions: list[Polygon],
+    *,
+    max_photos: int | None = MAX_PHOTOS,
+) -> SurveyPlan:
     """Plan over polygons already loaded (lon/lat degrees); :func:`plan_survey` reads them from
     the spec's files."""
     survey = spec.survey
@@ -75,23 +143,15 @@ def plan_polygons(spec: MissionSpec, polygons: list[Polygon], exclusions: list[P
         spec, site, near=area_xy.centroid, default_xy=lambda: steps.default_home_xy(area_xy), what="area"
     )
 
-    # 3. passes --------------------------------------------------------------------------------
+    # 3. passes ---------------------------------------------------------------------------------
     # Bearings in the spec and in every output are true bearings; geometry uses grid bearings.
     true_north_grid = site.true_north_grid_deg
-    if survey.direction_deg is not None:
-        direction = (survey.direction_deg + true_north_grid) % 180.0
-    else:
-        direction = auto_direction_deg(area_xy)
-    pass_defs = _pass_definitions(spec, direction, true_north_grid)
-    if survey.scales:
-        from .multiscale import scale_pass_defs
-
-        if spec.terrain is not None:
-            raise SpecError(
-                f"{spec.source}: [[survey.scale]] passes are not planned over a [terrain] DEM yet; "
-                f"plan each height as its own mission, or remove [terrain]"
-            )
-        pass_defs += [steps.PassDef(**fields) for fields in scale_pass_defs(spec, direction)]
+    pass_defs = _all_pass_defs(spec, site)
+    guess = estimate(spec, area_xy, _pass_geometry(spec, pass_defs, alt_agl_m))
+    log.info("estimate: %s", guess.text())
+    refusal = too_large(spec, guess, max_photos) if max_photos is not None else None
+    if refusal is not None:
+        raise SpecError(refusal)
 
     blocked_xy = steps.blocked_xy(spec, site.zones_xy)
     dem = steps.read_dem(spec, site.area_lonlat, home) if spec.terrain is not None else None
@@ -230,6 +290,8 @@ def _lay_out_passes(
                 if pdef.alt_agl_m is None
                 else camera.gsd_cm(pdef.alt_agl_m),
                 alt_agl_m=pdef.alt_agl_m,
+                front_overlap_pct=pdef.front_overlap_pct,
+                side_overlap_pct=pdef.side_overlap_pct,
             )
         )
     assert views is not None

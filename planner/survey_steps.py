@@ -27,24 +27,22 @@ from shapely.geometry import MultiPolygon, Polygon
 
 from . import exposure as ex
 from .area import build_area, check_area_size
-from .camera import Orientation
 from .coverage import ViewShares
 from .errors import AreaError, PlanningError, SpecError
 from .fixed_wing import fixed_wing_for
-from .footprint import near_far_gsd_cm
 from .geo import LocalFrame, geodesic_area_m2
 from .mission import HomePosition
 from .mission_builder import BuiltMission, PassPlan, build_mission
 from .plan import FlightPass, PassKind, PlanLayout, SurveyPlan
 from .spec import MissionSpec, TriggerMode
 from .terrain import Dem
-from .terrain_follow import TerrainSummary, apply_terrain
+from .terrain_follow import CastOverlap, TerrainSummary, apply_terrain
 
 log = logging.getLogger(__name__)
 
 #: Plans over a DEM with following: the first at the flat-ground spacing, then re-spaced for
 #: the highest ground under the frames until the footprints cast on the DEM keep the overlaps.
-TERRAIN_ATTEMPTS = 4
+TERRAIN_ATTEMPTS = 6
 #: Home farther than this from the area is taken for a mistake (lat and lon swapped), metres.
 MAX_HOME_DISTANCE_M = 50_000.0
 
@@ -197,17 +195,12 @@ def check_speed(
     if spec.survey.trigger is TriggerMode.HOVER:
         return speed_m_s
     limits = {"trigger": ex.max_speed_for_trigger_m_s(trigger_m, camera.min_trigger_interval_s)}
-    if camera.shutter_s is not None:
-        along_gsd = (
-            min(near_far_gsd_cm(camera, alt_agl_m, pdef.tilt_deg))
-            if pdef.tilt_deg
-            else (
-                camera.gsd_y_cm(alt_agl_m)
-                if spec.orientation is Orientation.LANDSCAPE
-                else camera.gsd_x_cm(alt_agl_m)
-            )
-        )
-        limits["blur"] = ex.max_speed_for_blur_m_s(along_gsd, camera.shutter_s, spec.survey.max_blur_px)
+    blur = ex.blur_speed_limit_m_s(
+        camera, spec.orientation, spec.survey.max_blur_px, alt_agl_m, pdef.tilt_deg, pdef.direction_deg,
+        pdef.look_heading_deg,
+    )  # fmt: skip
+    if blur is not None:
+        limits["blur"] = blur
     reason, limit = min(limits.items(), key=lambda kv: kv[1])
     if speed_m_s <= limit + 1e-9:
         return speed_m_s
@@ -320,39 +313,99 @@ def fit_to_terrain(
             alt_agl_m=alt_agl_m, speed_m_s=laid.speed_m_s, max_alt_agl_m=spec.vehicle.max_alt_agl_m,
             passes=laid.terrain_passes, camera=spec.camera, footprint_scale=scale,
         )  # fmt: skip
+        if not spec.terrain.follow:
+            break  # constant altitude: the overlaps are judged as they come
+        smaller = []
         needed = terrain_summary.footprint_scale_min
-        if not spec.terrain.follow or needed >= scale - 1e-3:
+        if needed < scale - 1e-3:
+            smaller.append(needed - 0.005)
+        for got, want in _overlap_shortfalls(laid.terrain_passes, built_t.cast_overlaps):
+            # the bases scale with the frame: 1 - B s' / D = want where 1 - B s / D = got
+            smaller.append(scale * (1.0 - (want + OVERLAP_AIM_PCT) / 100.0) / (1.0 - got / 100.0))
+        if not smaller:
             break
-        scale = max(0.05, needed - 0.005)
+        scale = max(0.05, min(smaller))
     if terrain_summary is not None:
         built, home = built_t, home_t
-        judge_terrain_overlaps(spec, terrain_summary, warnings)
+        judge_terrain_overlaps(
+            spec, laid.terrain_passes, built.cast_overlaps, terrain_summary, site.frame, warnings
+        )
     return laid, TerrainFit(built=built, home=home, terrain=terrain_summary, footprint_scale=used_scale)
 
 
-def judge_terrain_overlaps(spec: MissionSpec, terrain: TerrainSummary, warnings: list[str]) -> None:
-    """The overlaps of the footprints cast on the DEM against the spec: gaps at constant altitude
-    fail unless accepted; a shortfall is a warning."""
+#: Over a DEM, lines and triggers are spaced for this much more overlap than the spec asks
+#: (percentage points), so that the overlaps the footprints cast on the DEM keep hold.
+OVERLAP_AIM_PCT = 0.5
+
+
+def _overlap_shortfalls(
+    passes: Sequence[PassPlan], overlaps: Sequence[CastOverlap]
+) -> list[tuple[float, float]]:
+    """(achieved, asked) for every overlap of a nadir pass cast on the DEM that falls short."""
+    wanted = {p.index: (p.front_overlap_pct, p.side_overlap_pct) for p in passes}
+    out: list[tuple[float, float]] = []
+    for o in overlaps:
+        front, side = wanted.get(o.pass_index, (None, None))
+        if front is not None and o.front_pct < front:
+            out.append((o.front_pct, front))
+        if side is not None and o.side_pct < side:
+            out.append((o.side_pct, side))
+    return out
+
+
+def judge_terrain_overlaps(
+    spec: MissionSpec,
+    passes: Sequence[PassPlan],
+    overlaps: Sequence[CastOverlap],
+    terrain: TerrainSummary,
+    frame: LocalFrame,
+    warnings: list[str],
+) -> None:
+    """The overlaps of the footprints cast on the DEM against the spec, pass by pass: where one
+    falls short of what the spec asks, planning fails with where and by how much, unless the
+    spec accepts it (``accept_overlap_loss``), then it is a warning."""
     assert spec.terrain is not None
-    survey = spec.survey
-    front, side = terrain.front_overlap_min_pct, terrain.side_overlap_min_pct
-    figures = (
-        f"over the DEM the frames overlap by as little as {front:.0f} % forward and {side:.0f} % side "
-        f"(planned {survey.front_overlap_pct:g} % and {survey.side_overlap_pct:g} %; the stations are "
-        f"{terrain.station_alt_agl_min_m:.1f} to {terrain.station_alt_agl_max_m:.1f} m above the ground)"
+    names = {p.index: p.name for p in passes}
+    wanted = {p.index: (p.front_overlap_pct, p.side_overlap_pct) for p in passes}
+    short: list[str] = []
+    for o in overlaps:
+        front, side = wanted.get(o.pass_index, (None, None))
+        for what, got, want, xy in (
+            ("forward", o.front_pct, front, o.front_xy),
+            ("side", o.side_pct, side, o.side_xy),
+        ):
+            if want is None or got >= want - OVERLAP_TOLERANCE_PCT or xy is None:
+                continue
+            lon, lat = frame.to_lonlat(xy[0], xy[1])
+            gap = " (a gap between the frames)" if got < 0.0 else ""
+            short.append(
+                f"the {names.get(o.pass_index, 'nadir')} pass overlaps by {got:.1f} % {what}{gap}, "
+                f"{want - got:.1f} points below the {want:g} % asked, between the frames around lon "
+                f"{float(lon):.6f}, lat {float(lat):.6f}"
+            )
+    if not short:
+        return
+    fix = (
+        "set follow = true in [terrain] or fly higher"
+        if not spec.terrain.follow
+        else "lower tolerance_m in [terrain], or fly higher"
     )
-    gaps = side < 0.0 or front < 0.0
-    if not spec.terrain.follow and gaps and not spec.terrain.accept_overlap_loss:
+    where = "; ".join(short)
+    ground = (
+        f"the stations are {terrain.station_alt_agl_min_m:.1f} to {terrain.station_alt_agl_max_m:.1f} m "
+        f"above the ground"
+    )
+    if not spec.terrain.accept_overlap_loss:
         raise PlanningError(
-            f"{spec.source}: {figures}: gaps open between the frames where the ground is high; set "
-            f"follow = true in [terrain] (or fly higher), or set accept_overlap_loss = true in "
-            f"[terrain] to fly it anyway"
+            f"{spec.source}: over the DEM {where} ({ground}); {fix}, or set accept_overlap_loss = true "
+            f"in [terrain] to fly it anyway"
         )
-    if front < survey.front_overlap_pct - 1.0 or side < survey.side_overlap_pct - 1.0:
-        fix = (
-            "set follow = true in [terrain]" if not spec.terrain.follow else "lower tolerance_m in [terrain]"
-        )
-        warnings.append(f"{figures}{' (gaps between frames)' if gaps else ''}; {fix}")
+    warnings.append(f"over the DEM {where} ({ground}); {fix}")
+
+
+#: An overlap this far (percentage points) below the spec's is still taken as held: the cast
+#: footprints are measured at a finite number of rays and cuts.
+OVERLAP_TOLERANCE_PCT = 0.5
 
 
 def finish_plan(
@@ -403,10 +456,7 @@ def finish_plan(
     vehicle = spec.vehicle
     warnings.extend(
         limit_warnings(
-            autopilot=vehicle.autopilot,
-            item_count=len(built.mission.items),
-            flight_time_s=built.flight_time_s,
-            max_flight_time_min=vehicle.max_flight_time_min,
+            vehicle=vehicle, item_count=len(built.mission.items), flight_time_s=built.flight_time_s
         )
     )
     summary = summarize(

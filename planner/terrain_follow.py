@@ -28,13 +28,15 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+import shapely
 from numpy.typing import NDArray
 
 from .camera import Camera
 from .errors import PlanningError
+from .flight_path import PathPoint, Role
 from .footprint import cast_on_dem, image_grid_mm
 from .geo import LocalFrame
-from .mission import HomePosition, MavCmd, MissionItem
+from .mission import HomePosition
 from .mission_builder import BuiltMission, PassPlan
 from .plan import Stations
 from .spec import TerrainSpec
@@ -44,6 +46,18 @@ log = logging.getLogger(__name__)
 
 #: A flight closer to the ground than this, anywhere on the path, is refused.
 MIN_CLEARANCE_M = 5.0
+
+
+@dataclass(frozen=True, kw_only=True)
+class CastOverlap:
+    """The smallest overlap of neighbouring frames of one pass, cast on the DEM (percent;
+    negative: a gap), and where it is (the local frame's x, y: the middle of the two cameras)."""
+
+    pass_index: int
+    front_pct: float
+    front_xy: tuple[float, float] | None
+    side_pct: float
+    side_xy: tuple[float, float] | None
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -69,6 +83,12 @@ class TerrainSummary:
     footprint_scale: float
     #: The smallest height above the highest ground a nadir frame sees, over the planned height.
     footprint_scale_min: float
+    #: Where the smallest forward and side overlaps are (the middle of the two cameras; None:
+    #: no pair of frames, or a plan from before these were written).
+    front_overlap_min_lon_deg: float | None = None
+    front_overlap_min_lat_deg: float | None = None
+    side_overlap_min_lon_deg: float | None = None
+    side_overlap_min_lat_deg: float | None = None
 
     def as_dict(self) -> dict[str, object]:
         return dataclasses.asdict(self)
@@ -132,18 +152,23 @@ def apply_terrain(
     camera: Camera,
     footprint_scale: float = 1.0,
 ) -> tuple[BuiltMission, HomePosition, TerrainSummary]:
-    """Waypoint altitudes, extra waypoints and station heights over the DEM (module docstring)."""
+    """Waypoint altitudes, extra waypoints and station heights over the DEM (module docstring):
+    the flight path reshaped, then its items emitted again (planner.mission_items)."""
+    flat = built.path
+    along = flat.distance_along_m()
+    track = flat.horizontal()  # the points that end legs; the samples are taken along them
     path = built.path_xy_m
+    path_s = np.asarray([along[k] for k in track], float)
     home_ground = float(dem.elevation_at(np.array([home_xy[0]]), np.array([home_xy[1]]), frame)[0])
 
     # Sample every leg of the path (both ends included), remembering where legs start.
     s_parts, x_parts, y_parts = [], [], []
     for k in range(len(path) - 1):
         (x0, y0), (x1, y1) = path[k], path[k + 1]
-        length = built.path_s_m[k + 1] - built.path_s_m[k]
+        length = path_s[k + 1] - path_s[k]
         n = max(1, math.ceil(length / terrain.sample_spacing_m))
         t = np.linspace(0.0, 1.0, n + 1)[:-1] if k < len(path) - 2 else np.linspace(0.0, 1.0, n + 1)
-        s_parts.append(built.path_s_m[k] + t * length)
+        s_parts.append(path_s[k] + t * length)
         x_parts.append(x0 + t * (x1 - x0))
         y_parts.append(y0 + t * (y1 - y0))
         s = np.concatenate(s_parts)
@@ -159,7 +184,7 @@ def apply_terrain(
         profile = np.full_like(s, home_ground + alt_agl_m)
 
     # Waypoints: the path points (their profile altitude) plus the splits of each leg.
-    point_sample = np.searchsorted(s, built.path_s_m - 1e-9)
+    point_sample = np.searchsorted(s, path_s - 1e-9)
     point_sample[-1] = len(s) - 1
     extra_by_leg: dict[int, list[int]] = {}
     if terrain.follow:
@@ -169,35 +194,37 @@ def apply_terrain(
             if splits:
                 extra_by_leg[k] = [i + m for m in splits]
 
-    # Rebuild the items: path-point waypoints get their altitude; extra waypoints go in front.
-    item_to_point = {idx: k for k, idx in enumerate(built.path_item_index) if idx is not None}
-    old = built.mission.items
-    items: list[MissionItem] = []
+    # The path again: each waypoint at its altitude; the points added on a leg go in front of
+    # the waypoint that ends it (or of the return to launch: the way home keeps its clearance
+    # too). A plane's approach and landing keep the altitudes of its landing sequence.
+    leg_end = {point: k for k, point in enumerate(track)}  # point index -> its place in the track
+    points: list[PathPoint] = []
     wp_s: list[float] = [0.0]
     wp_alt: list[float] = [float(profile[0])]
-
-    def extra_waypoints(k_leg: int) -> None:
-        for m in extra_by_leg.get(k_leg, []):
-            lon, lat = frame.to_lonlat(x[m], y[m])
-            items.append(MissionItem.waypoint(float(lat), float(lon), float(profile[m] - home_ground)))
-            wp_s.append(float(s[m]))
-            wp_alt.append(float(profile[m]))
-
-    for index, item in enumerate(old):
-        if index in item_to_point:
-            k = item_to_point[index]
-            extra_waypoints(k - 1)
-            alt_rel = float(profile[point_sample[k]] - home_ground)
-            items.append(dataclasses.replace(item, param7=alt_rel))
-            wp_s.append(float(built.path_s_m[k]))
-            wp_alt.append(float(profile[point_sample[k]]))
-        elif int(item.command) == MavCmd.NAV_RETURN_TO_LAUNCH:
-            extra_waypoints(len(path) - 2)  # the way home keeps its clearance too
-            items.append(item)
+    lands_itself = any(p.role is Role.APPROACH for p in flat.points)  # a plane; else RTL
+    for index, point in enumerate(flat.points):
+        place = leg_end.get(index, 0)  # > 0: it ends leg place - 1 of the track
+        rtl = point.role is Role.LANDING and not lands_itself
+        if place > 0 and (point.is_waypoint or rtl):
+            for m in extra_by_leg.get(place - 1, []):
+                points.append(
+                    PathPoint(
+                        xy=(float(x[m]), float(y[m])), role=Role.TERRAIN, pass_index=point.pass_index,
+                        line_index=point.line_index, alt_m=float(profile[m] - home_ground),
+                    )
+                )  # fmt: skip
+                wp_s.append(float(s[m]))
+                wp_alt.append(float(profile[m]))
+        if place > 0 and point.is_waypoint:
+            sample = point_sample[place]
+            points.append(dataclasses.replace(point, alt_m=float(profile[sample] - home_ground)))
+            wp_s.append(float(path_s[place]))
+            wp_alt.append(float(profile[sample]))
         else:
-            items.append(item)
+            points.append(point)
     wp_s.append(float(s[-1]))
     wp_alt.append(float(profile[-1]))
+    new_path = dataclasses.replace(flat, points=tuple(points))
 
     # What the vehicle flies: straight legs between waypoints.
     flown = np.interp(s, np.asarray(wp_s), np.asarray(wp_alt))
@@ -230,7 +257,7 @@ def apply_terrain(
     # Stations: altitude from the flown legs, height above the ground below them.
     st = built.stations
     n = len(st)
-    st_alt = np.interp(built.station_s_m, np.asarray(wp_s), np.asarray(wp_alt))
+    st_alt = np.interp(flat.station_distance_m(along), np.asarray(wp_s), np.asarray(wp_alt))
     st_ground = dem.elevation_at(st.x_m, st.y_m, frame) if n else np.zeros(0)
     st_agl = st_alt - st_ground
     # Footprints cast on the DEM from each station's flown position (rays through a grid of the
@@ -256,7 +283,18 @@ def apply_terrain(
         footprint_xy_m=corners,
         footprint_lonlat_deg=corners_ll,
     )
-    front_min, side_min = cast_overlap_minimums(stations, cast, passes)
+    overlaps = cast_overlaps(stations, cast, passes)
+    front_min = min((o.front_pct for o in overlaps), default=100.0)
+    side_min = min((o.side_pct for o in overlaps), default=100.0)
+
+    def lonlat_of(xy: tuple[float, float] | None) -> tuple[float | None, float | None]:
+        if xy is None:
+            return None, None
+        lon, lat = frame.to_lonlat(xy[0], xy[1])
+        return round(float(lon), 7), round(float(lat), 7)
+
+    front_at = next((o.front_xy for o in overlaps if o.front_pct == front_min), None)
+    side_at = next((o.side_xy for o in overlaps if o.side_pct == side_min), None)
     nadir = st.tilt_deg == 0.0
     if n and nadir.any():
         # Height above the highest ground the frame sees, over the planned height: the frame's
@@ -266,7 +304,7 @@ def apply_terrain(
     else:
         scale_min = 1.0
     new_home = dataclasses.replace(home, alt_amsl_m=home_ground)
-    mission = dataclasses.replace(built.mission, items=tuple(items), home=new_home)
+    mission = built.emitter(new_path, new_home)
     summary = TerrainSummary(
         dem=dem.path.name,
         follow=terrain.follow,
@@ -279,6 +317,10 @@ def apply_terrain(
         gsd_max_cm=float(stations.gsd_cm.max()) if n else 0.0,
         front_overlap_min_pct=front_min,
         side_overlap_min_pct=side_min,
+        front_overlap_min_lon_deg=lonlat_of(front_at)[0],
+        front_overlap_min_lat_deg=lonlat_of(front_at)[1],
+        side_overlap_min_lon_deg=lonlat_of(side_at)[0],
+        side_overlap_min_lat_deg=lonlat_of(side_at)[1],
         path_alt_agl_min_m=clearance,
         path_alt_agl_max_m=agl_max,
         alt_rel_home_max_m=float(np.max(flown) - home_ground),
@@ -288,11 +330,14 @@ def apply_terrain(
     )
     log.info("terrain: %d waypoints added, height above ground %.1f-%.1f m", summary.waypoints_added,
              summary.station_alt_agl_min_m, summary.station_alt_agl_max_m)  # fmt: skip
-    return dataclasses.replace(built, mission=mission, stations=stations), new_home, summary
+    built_t = dataclasses.replace(
+        built, path=new_path, mission=mission, stations=stations, cast_overlaps=tuple(overlaps)
+    )
+    return built_t, new_home, summary
 
 
 #: Rays per image side cast on the DEM for each frame (a _GRID x _GRID grid, border included).
-_GRID = 5
+_GRID = 9
 
 
 def _up_bearing_grid_deg(corners: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -304,66 +349,104 @@ def _up_bearing_grid_deg(corners: NDArray[np.float64]) -> NDArray[np.float64]:
     return np.asarray(np.degrees(np.arctan2(d[:, 0], d[:, 1])) % 360.0, float)
 
 
-def cast_overlap_minimums(
-    stations: Stations, cast: NDArray[np.float64], passes: list[PassPlan]
-) -> tuple[float, float]:
-    """Smallest forward and side overlap (percent) of the nadir frames, from their footprints cast
-    on the DEM (``cast``: (N, K, 3) ground points of an image grid, see cast_on_dem).
+#: Cuts across each pair of neighbouring footprints at which their overlap is measured.
+_SLICES = 17
 
-    In each pass's frame (u along the lines, v across), a frame's four image edges are its back,
-    front, left and right edges (by their mean u and v). Forward: for consecutive stations of a
-    run, the front edge's nearest point to the camera minus the next frame's farthest back-edge
-    point, over the frame's length. Side: for each station and the station of the next line
-    nearest along the line, the right edge's nearest point minus that frame's farthest left-edge
-    point. The overlap is given as a share of the frame's length (width) where they meet:
-    overlap / (overlap + the cameras' distance), which over flat ground is Eq. 3-5's
-    1 - B / D. Negative: a gap."""
+
+def footprint_border(cast: NDArray[np.float64], grid: int) -> NDArray[np.float64]:
+    """The border of each cast image grid (N, grid*grid, >=2) as a ring (N, 4 (grid - 1), 2):
+    top row, right column, bottom row back, left column up."""
+    idx = np.arange(grid * grid).reshape(grid, grid)
+    ring = np.concatenate([idx[0, :-1], idx[:-1, -1], idx[-1, :0:-1], idx[:0:-1, 0]])
+    return np.asarray(cast[:, ring, :2], float)
+
+
+def slice_overlap_shares(
+    a: NDArray[np.float64],
+    b: NDArray[np.float64],
+    s_lo: NDArray[np.float64],
+    s_hi: NDArray[np.float64],
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """For pairs of footprint rings ``a``, ``b`` (M, K, 2) in coordinates (s, t), where b lies
+    beyond a in t: cut both at _SLICES values of s across the part of ``s_lo``..``s_hi`` (the
+    stretch the pair answers for) they both span, and at each cut take the length both cover
+    over the longer of the two cuts (negative: the gap between them, over the longer cut).
+    Returns each pair's smallest share and the s where it is (NaN: no common stretch)."""
+    m = a.shape[0]
+    if m == 0:
+        return np.zeros(0), np.zeros(0)
+    lo = np.maximum(np.maximum(a[..., 0].min(axis=1), b[..., 0].min(axis=1)), s_lo)
+    hi = np.minimum(np.minimum(a[..., 0].max(axis=1), b[..., 0].max(axis=1)), s_hi)
+    frac = (np.arange(_SLICES) + 0.5) / _SLICES
+    s = lo[:, None] + frac[None, :] * (hi - lo)[:, None]  # (M, S)
+    t_lo = np.minimum(a[..., 1].min(axis=1), b[..., 1].min(axis=1)) - 1.0
+    t_hi = np.maximum(a[..., 1].max(axis=1), b[..., 1].max(axis=1)) + 1.0
+    ends = np.stack(
+        [
+            np.stack([s, np.broadcast_to(t_lo[:, None], s.shape)], axis=-1),
+            np.stack([s, np.broadcast_to(t_hi[:, None], s.shape)], axis=-1),
+        ],
+        axis=2,
+    ).reshape(m * _SLICES, 2, 2)
+    cuts = shapely.linestrings(ends)
+    poly_a = np.repeat(shapely.polygons(a), _SLICES)
+    poly_b = np.repeat(shapely.polygons(b), _SLICES)
+    ba = shapely.bounds(shapely.intersection(poly_a, cuts)).reshape(m, _SLICES, 4)
+    bb = shapely.bounds(shapely.intersection(poly_b, cuts)).reshape(m, _SLICES, 4)
+    a_lo, a_hi, b_lo, b_hi = ba[..., 1], ba[..., 3], bb[..., 1], bb[..., 3]
+    both = np.minimum(a_hi, b_hi) - np.maximum(a_lo, b_lo)
+    longer = np.maximum(a_hi - a_lo, b_hi - b_lo)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        share = both / longer
+    share = np.where(np.isfinite(share) & (hi > lo)[:, None], share, np.inf)
+    k = np.argmin(share, axis=1)
+    best = share[np.arange(m), k]
+    where = s[np.arange(m), k]
+    best = np.where(np.isfinite(best), best, np.nan)
+    return best, np.where(np.isfinite(best), where, np.nan)
+
+
+def cast_overlaps(stations: Stations, cast: NDArray[np.float64], passes: list[PassPlan]) -> list[CastOverlap]:
+    """The smallest forward and side overlap of each nadir pass's neighbouring frames, judged
+    from their footprints cast on the DEM (``cast``: (N, _GRID * _GRID, 3) ground points of the
+    image grid, see cast_on_dem) themselves.
+
+    In the pass's frame (u along the lines, v across): forward, each pair of consecutive frames
+    of a run; side, each frame and the frame of the next line nearest it along the line. Each
+    pair's two footprints are cut across the direction that separates them (at fixed v for
+    forward pairs, fixed u for side pairs) at _SLICES places along the stretch the pair answers
+    for (forward: the band of the line, a line spacing wide; side: the first frame's trigger
+    step), and
+    at each cut the length both cover is taken over the longer cut: over flat ground, Eq. 3-5's
+    1 - B / D; over relief, the overlap where the footprints come closest to parting. Negative:
+    a gap."""
+    out: list[CastOverlap] = []
     nadir = stations.tilt_deg == 0.0
     if not nadir.any() or cast.shape[0] == 0:
-        return 100.0, 100.0
-    g = _GRID
-    idx = np.arange(g * g).reshape(g, g)
-    edges = [idx[0, :], idx[-1, :], idx[:, 0], idx[:, -1]]
-    front_all: list[float] = []
-    side_all: list[float] = []
+        return out
+    ring_xy = footprint_border(cast, _GRID)
     for pp in passes:
         if pp.tilt_deg != 0.0:
             continue
-        mask = nadir & (stations.pass_index == pp.index)
-        if not mask.any():
+        sel = np.flatnonzero(nadir & (stations.pass_index == pp.index))
+        if sel.size == 0:
             continue
         t = math.radians(pp.direction_deg)
-        u_st = stations.x_m[mask] * math.sin(t) + stations.y_m[mask] * math.cos(t)
-        v_st = stations.x_m[mask] * math.cos(t) - stations.y_m[mask] * math.sin(t)
-        pts = cast[mask]
-        u = pts[..., 0] * math.sin(t) + pts[..., 1] * math.cos(t)
-        v = pts[..., 0] * math.cos(t) - pts[..., 1] * math.sin(t)
-        mean_u = np.stack([u[:, e].mean(axis=1) for e in edges], axis=1)  # (M, 4)
-        mean_v = np.stack([v[:, e].mean(axis=1) for e in edges], axis=1)
-        e_front, e_back = np.argmax(mean_u - u_st[:, None], axis=1), np.argmin(mean_u - u_st[:, None], axis=1)
-        e_right, e_left = np.argmax(mean_v - v_st[:, None], axis=1), np.argmin(mean_v - v_st[:, None], axis=1)
-        edge_idx = np.stack(edges)  # (4, g)
-
-        def edge(
-            k: int,
-            which: NDArray[np.intp],
-            u: NDArray[np.float64] = u,
-            v: NDArray[np.float64] = v,
-            edge_idx: NDArray[np.intp] = edge_idx,
-        ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-            points = edge_idx[which[k]]
-            return u[k, points], v[k, points]
-
-        line = stations.line_index[mask]
+        sin_t, cos_t = math.sin(t), math.cos(t)
+        u_st = stations.x_m[sel] * sin_t + stations.y_m[sel] * cos_t
+        v_st = stations.x_m[sel] * cos_t - stations.y_m[sel] * sin_t
+        ring = ring_xy[sel]
+        ring_u = ring[..., 0] * sin_t + ring[..., 1] * cos_t
+        ring_v = ring[..., 0] * cos_t - ring[..., 1] * sin_t
+        line = stations.line_index[sel]
+        front_pairs: list[tuple[int, int]] = []
         for row in np.unique(line):
             k = np.flatnonzero(line == row)
-            k = k[np.argsort(u_st[k])]
+            k = k[np.argsort(u_st[k], kind="stable")]
             for a, b in itertools.pairwise(k):
-                if u_st[b] - u_st[a] > pp.trigger_distance_m * 1.01:
-                    continue  # a break in the line (a notch, an exclusion), not a pair
-                fu, fv = edge(int(a), e_front)
-                bu, bv = edge(int(b), e_back)
-                front_all.append(_overlap_share(_edge_overlap(fv, fu, bv, bu), u_st[b] - u_st[a]))
+                if u_st[b] - u_st[a] <= pp.trigger_distance_m * 1.01:  # else a break in the line
+                    front_pairs.append((int(a), int(b)))
+        side_pairs: list[tuple[int, int]] = []
         order = sorted(np.unique(line), key=lambda r: float(np.mean(v_st[line == r])))
         for r0, r1 in itertools.pairwise(order):
             k0, k1 = np.flatnonzero(line == r0), np.flatnonzero(line == r1)
@@ -371,35 +454,41 @@ def cast_overlap_minimums(
                 continue
             nearest = k1[np.argmin(np.abs(u_st[k0][:, None] - u_st[k1][None, :]), axis=1)]
             for a, b in zip(k0, nearest, strict=True):
-                if abs(u_st[b] - u_st[a]) > pp.trigger_distance_m:
-                    continue
-                ru, rv = edge(int(a), e_right)
-                lu, lv = edge(int(b), e_left)
-                side_all.append(_overlap_share(_edge_overlap(ru, rv, lu, lv), v_st[b] - v_st[a]))
-    front = 100.0 * min(front_all) if front_all else 100.0
-    side = 100.0 * min(side_all) if side_all else 100.0
-    return front, side
+                if abs(u_st[b] - u_st[a]) <= pp.trigger_distance_m:
+                    side_pairs.append((int(a), int(b)))
 
+        x_sel, y_sel = stations.x_m[sel], stations.y_m[sel]
 
-def _edge_overlap(
-    a_along: NDArray[np.float64],
-    a_across: NDArray[np.float64],
-    b_along: NDArray[np.float64],
-    b_across: NDArray[np.float64],
-) -> float:
-    """Smallest overlap between frame a's edge and frame b's opposite edge (b lies beyond a in the
-    ``across`` direction), compared at the same positions along the edges: a's edge minus b's,
-    interpolated at a's points, over the part both edges span (cast points, polylines)."""
-    order = np.argsort(b_along)
-    lo, hi = float(b_along.min()), float(b_along.max())
-    inside = (a_along >= lo) & (a_along <= hi)
-    if not inside.any():
-        return float(np.min(a_across) - np.max(b_across))
-    b_at_a = np.interp(a_along[inside], b_along[order], b_across[order])
-    return float(np.min(a_across[inside] - b_at_a))
+        def judge(
+            pairs: list[tuple[int, int]],
+            cut: NDArray[np.float64],
+            across: NDArray[np.float64],
+            centre: NDArray[np.float64],
+            half: float,
+            x_sel: NDArray[np.float64] = x_sel,
+            y_sel: NDArray[np.float64] = y_sel,
+        ) -> tuple[float, tuple[float, float] | None]:
+            if not pairs:
+                return 100.0, None
+            ia = np.array([p[0] for p in pairs])
+            ib = np.array([p[1] for p in pairs])
+            a = np.stack([cut[ia], across[ia]], axis=-1)
+            b = np.stack([cut[ib], across[ib]], axis=-1)
+            share, _ = slice_overlap_shares(a, b, centre[ia] - half, centre[ia] + half)
+            if not np.isfinite(share).any():
+                return 100.0, None
+            j = int(np.nanargmin(share))
+            mid_x = float(x_sel[ia[j]] + x_sel[ib[j]]) / 2.0
+            mid_y = float(y_sel[ia[j]] + y_sel[ib[j]]) / 2.0
+            return 100.0 * float(share[j]), (mid_x, mid_y)
 
-
-def _overlap_share(overlap_m: float, base_m: float) -> float:
-    """Overlap over the frame size at the overlap (overlap + camera base); < 0 for a gap."""
-    size = overlap_m + abs(base_m)
-    return overlap_m / size if size > 1e-9 else -10.0
+        # Forward: cut at fixed v across the band the line answers for (a line spacing wide);
+        # side: at fixed u along the stretch the first frame answers for (a trigger step long).
+        front, front_xy = judge(front_pairs, ring_v, ring_u, v_st, pp.line_spacing_m / 2.0)
+        side, side_xy = judge(side_pairs, ring_u, ring_v, u_st, pp.trigger_distance_m / 2.0)
+        out.append(
+            CastOverlap(
+                pass_index=pp.index, front_pct=front, front_xy=front_xy, side_pct=side, side_xy=side_xy
+            )
+        )
+    return out

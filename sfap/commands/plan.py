@@ -6,6 +6,7 @@ from pathlib import Path
 
 import click
 
+from planner.estimate import ANNOUNCE_PHOTOS, MAX_PHOTOS, PlanEstimate
 from planner.plan_run import PlanRun, plan_spec
 
 from ..common import dumps_json, echo_table, json_option, overwrite_option, progress, warnings_once
@@ -59,6 +60,14 @@ _ROWS = (
     help="Plan only what is left from this station on (0-based, the station property of stations.geojson).",
 )
 @click.option(
+    "--max-photos",
+    "max_photos",
+    type=click.IntRange(min=1),
+    default=MAX_PHOTOS,
+    show_default=True,
+    help="Refuse at once a plan estimated at more photos than this (the estimate and the fix are printed).",
+)
+@click.option(
     "--resume-record",
     "resume_record",
     type=click.Path(exists=True, path_type=Path),
@@ -73,6 +82,7 @@ def command(
     no_progress: bool,
     resume_from: int | None = None,
     resume_record: Path | None = None,
+    max_photos: int = MAX_PHOTOS,
 ) -> None:
     """Plan a survey from SPEC_FILE (a mission spec in TOML) and write, into OUTPUT:
     mission.plan (QGroundControl), mission.waypoints (QGC WPL 110), flight_lines.geojson,
@@ -86,10 +96,21 @@ def command(
     with its own files. --resume-from N (or --resume-record MONITOR_DIR) plans only what is left
     of the mission from station N on (after the last station the monitor recorded).
 
+    A plan's size is estimated first from its geometry alone (photos, lines, items, hours,
+    flights, memory); a large one is announced, and one beyond --max-photos refused at once.
+
     Example: sfap plan missions/bardenas-gully.toml -o out/gully
     """
     with warnings_once("planner") as handled:  # each warning printed once
-        run = plan_spec(spec_file, resume_from=resume_from, resume_record=resume_record)
+
+        def announce(guess: PlanEstimate) -> None:
+            if guess.photos > ANNOUNCE_PHOTOS and not as_json:
+                click.echo(f"planning {guess.text()}", err=True)
+
+        run = plan_spec(
+            spec_file, resume_from=resume_from, resume_record=resume_record, max_photos=max_photos,
+            announce=announce,
+        )  # fmt: skip
         with progress("writing", run.file_count, enabled=not no_progress and not as_json) as advance:
             run.write(out_dir, overwrite=overwrite, progress=advance)
         _present(run, out_dir, as_json)
@@ -152,9 +173,7 @@ def _present(run: PlanRun, out_dir: Path, as_json: bool) -> None:
             )
         )
     echo_table(rows, title=f"{plan.name}: planned into {out_dir}")
-    for warning in plan.warnings:
-        if sorties and warning.startswith("the flight takes"):
-            continue  # the sorties below each fit one battery
+    for warning in plan.warnings:  # with sorties, of the plan as flown: each sortie fits one battery
         click.echo(f"warning: {warning}", err=True)
     if sorties:
         usable = spec.vehicle.usable_flight_s or 0.0

@@ -4,12 +4,13 @@ the stations carry their pass and height, and the flight time counts the climb b
 
 from __future__ import annotations
 
+import itertools
 import math
 from typing import Any
 
 import pytest
 import shapely
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 from shapely.geometry import Polygon
 from survey_oracles import REPO
@@ -51,6 +52,8 @@ def spec_with(survey: dict[str, Any], vehicle: dict[str, Any] | None = None) -> 
 def test_each_pass_is_spaced_for_its_height_and_covers_the_area(
     base: float, heights: list[float], front: float | None, side: float | None, skew: float
 ) -> None:
+    levels = [base, *heights]  # a scale at a height already flown is refused (below)
+    assume(all(abs(a - b) >= 0.05 * max(a, b) for a, b in itertools.combinations(levels, 2)))
     scales = []
     for h in heights:
         table: dict[str, float] = {"altitude_agl_m": h}
@@ -113,4 +116,23 @@ def test_a_scale_above_the_height_limit_or_without_a_height_is_refused() -> None
         spec_with({"altitude_agl_m": 60.0, "scale": [{"front_overlap_pct": 70}]})
     spec = spec_with({"altitude_agl_m": 60.0, "scale": [{"altitude_agl_m": 450.0}]})
     with pytest.raises(SpecError, match=r"needs a flying height of 450\.0 m"):
+        plan_polygons(spec, [lonlat_polygon([(0, 0), (300, 0), (300, 200), (0, 200)])], [])
+
+
+@pytest.mark.parametrize(
+    "scale", [{"altitude_agl_m": 60.0}, {"altitude_agl_m": 61.5}, {"altitude_agl_m": 160.0, "twice": True}]
+)
+def test_a_scale_at_a_height_already_flown_is_refused(scale: dict[str, object]) -> None:
+    scales = [{"altitude_agl_m": scale["altitude_agl_m"]}]
+    if scale.get("twice"):
+        scales.append({"altitude_agl_m": 158.0})
+    spec = spec_with({"altitude_agl_m": 60.0, "scale": scales})
+    with pytest.raises(SpecError, match=r"the same photos twice"):
+        plan_polygons(spec, [lonlat_polygon([(0, 0), (300, 0), (300, 200), (0, 200)])], [])
+
+
+def test_a_scale_at_the_main_gsd_is_refused() -> None:
+    same = spec_with({"altitude_agl_m": 60.0}).camera.gsd_cm(60.0)
+    spec = spec_with({"altitude_agl_m": 60.0, "scale": [{"gsd_cm": round(same, 4)}]})
+    with pytest.raises(SpecError, match=r"height of the main pass"):
         plan_polygons(spec, [lonlat_polygon([(0, 0), (300, 0), (300, 200), (0, 200)])], [])

@@ -102,7 +102,8 @@ def test_every_summary_figure_against_an_independent_computation(orientation: st
     assert s.exposure_interval_s == pytest.approx(base / speed)  # the along-track base, not the spacing
     assert s.speed_m_s == pytest.approx(speed)
     assert s.max_speed_trigger_m_s == pytest.approx(base / 1.0)
-    assert s.max_speed_blur_m_s == pytest.approx(0.5 * min(s.gsd_along_cm, s.gsd_across_cm) / 100 / 0.0005)
+    # the limit enforced: blur along the motion (the lines run along the image axis of gsd_along)
+    assert s.max_speed_blur_m_s == pytest.approx(0.5 * s.gsd_along_cm / 100 / 0.0005)
     assert s.max_speed_m_s == pytest.approx(min(s.max_speed_trigger_m_s, s.max_speed_blur_m_s))
     assert s.base_height_ratio == pytest.approx(base / height)
     # intersection angle: the two rays to the ground point midway between the cameras
@@ -169,3 +170,24 @@ def test_bundled_examples_say_what_no_vehicle_can_fly() -> None:
     assert any(f"({hours:.1f} h)" in w and "battery" in w for w in quarry.warnings)
     gully = plan_survey(load_spec(MISSIONS / "bardenas-gully.toml"))
     assert not any("battery" in w or "items" in w for w in gully.warnings)
+
+
+def test_warnings_speak_of_the_plan_as_flown_with_one_battery_model() -> None:
+    """A vehicle with an endurance flies the plan as sorties that each fit its battery and the
+    autopilot's memory: the whole plan then warns of neither; without one, the mission as planned
+    warns of both, against max_flight_time_min, and names no code."""
+    from planner.plan_run import plan_spec
+
+    run = plan_spec(MISSIONS / "quarry-block-sorties.toml")
+    assert run.sorties
+    assert not any("items with home" in w or "battery" in w for w in run.plan.warnings), run.plan.warnings
+    usable = run.spec.vehicle.usable_flight_s
+    assert usable is not None
+    for sortie in run.sorties:
+        assert sortie.plan.summary.flight_time_s <= usable + 1e-6
+        assert len(sortie.plan.mission.items) + 1 <= 650
+        assert not sortie.plan.warnings, sortie.plan.warnings
+    quarry = plan_survey(load_spec(MISSIONS / "quarry-block.toml"))
+    assert any("ArduPilot holds (650" in w for w in quarry.warnings), quarry.warnings
+    assert any("max_flight_time_min = 30" in w for w in quarry.warnings), quarry.warnings
+    assert not any("planner." in w for w in quarry.warnings)

@@ -102,7 +102,9 @@ def test_constant_altitude_that_opens_gaps_fails_unless_accepted(tmp_path: Path,
     source = source.replace('"bardenas-gully', f'"{MISSIONS}/bardenas-gully')
     spec_file = tmp_path / "constant.toml"
     spec_file.write_text(source)
-    with pytest.raises(PlanningError, match=r"-\d+ % side.*gaps open.*follow = true.*accept_overlap_loss"):
+    with pytest.raises(
+        PlanningError, match=r"-\d+\.\d % side \(a gap between the frames\).*follow = true.*accept_overlap"
+    ):
         plan_survey(load_spec(spec_file))
     spec_file.write_text(source.replace("follow = false", "follow = false\naccept_overlap_loss = true"))
     plan = plan_survey(load_spec(spec_file))
@@ -120,7 +122,7 @@ def test_constant_altitude_that_opens_gaps_fails_unless_accepted(tmp_path: Path,
     assert plan.stations.gsd_cm[high] == pytest.approx(
         plan.camera.gsd_cm(float(plan.stations.alt_agl_m[high])), rel=1e-9
     )
-    assert any("gaps between frames" in w for w in plan.warnings)
+    assert any("a gap between the frames" in w for w in plan.warnings)
 
 
 @settings(max_examples=60, deadline=None, derandomize=True)
@@ -308,7 +310,7 @@ def test_badlands_at_constant_altitude_reports_the_loss(tmp_path: Path) -> None:
     assert terrain is not None
     # 12 m ridges under a 75 m flight: the ridge tops are 16 % nearer, the sidelap there is lower
     assert terrain["side_overlap_min_pct"] < 70.0 - 3.0  # type: ignore[operator]
-    assert any("overlap by as little as" in w and "follow = true" in w for w in plan.warnings)
+    assert any("% side" in w and "points below" in w and "follow = true" in w for w in plan.warnings)
 
 
 def test_terrain_figures_of_the_summary(terrain_plan: SurveyPlan, dem: Dem) -> None:
