@@ -16,18 +16,22 @@ from dataclasses import dataclass
 import shapely
 
 from . import exposure as ex
+from . import trigger as trig
 from .lines import END_STATIONS
 from .spec import MissionSpec, TriggerMode
 
 #: The most photos a plan is made for unless asked for more (sfap plan --max-photos): about
-#: 2 min of planning and 1 GB of memory on a small laptop (BENCHMARKS.md, the planner's size).
-MAX_PHOTOS = 200_000
-#: Memory the planner holds per photo (stations, footprints, the views of the coverage check,
-#: the files' text), bytes; and what it needs whatever the size. Measured (BENCHMARKS.md).
-BYTES_PER_PHOTO = 4_000
-BASE_BYTES = 250_000_000
-#: Mission items per line flown: entry, camera on + trigger, camera off + trigger, exit.
-ITEMS_PER_LINE = 6
+#: 570 MB of memory and 15-90 s of planning, quiet machine to loaded (BENCHMARKS.md, "The
+#: planner's size"); the 1,000 km2 block at 2.4 cm (about 957,000 photos) is refused.
+MAX_PHOTOS = 500_000
+#: Peak memory of `sfap plan` per photo and whatever the size, bytes, from whole processes
+#: (25 km2: 23,856 photos, 136 MB; 100 km2: 95,625 photos, 200 MB; 1,000 km2: 956,390 photos,
+#: 1,311 MB with its footprints.gpkg; BENCHMARKS.md): the largest case's slope, an upper bound.
+BYTES_PER_PHOTO = 1_250
+BASE_BYTES = 115_000_000
+#: Mission items per armed run of a line: camera on + trigger, camera off + trigger (and per line
+#: its entry and exit).
+ITEMS_PER_RUN = 4
 #: A plan estimated above this many photos takes more than a few seconds: the command says so.
 ANNOUNCE_PHOTOS = 20_000
 
@@ -68,7 +72,7 @@ def estimate(spec: MissionSpec, area_xy: shapely.Geometry, passes: Sequence[Pass
     """The estimate for ``passes`` over ``area_xy`` (metres, the plan's local frame)."""
     survey = spec.survey
     area_m2 = float(area_xy.area)
-    lines = photos = 0
+    lines = photos = runs = 0
     length_m = 0.0
     for p in passes:
         base = ex.air_base_m(p.rect.along_m, p.front_overlap_pct)
@@ -78,14 +82,18 @@ def estimate(spec: MissionSpec, area_xy: shapely.Geometry, passes: Sequence[Pass
         n = max(1, math.ceil(max(v1 - v0 - p.rect.across_m, 0.0) / spacing - 1e-9) + 1)
         on_m = area_m2 / spacing  # the camera-on length: the area over the band each line answers for
         lines += n
-        photos += math.ceil(on_m / base) + n * (1 + 2 * END_STATIONS)
+        pass_photos = math.ceil(on_m / base) + n * (1 + 2 * END_STATIONS)
+        photos += pass_photos
+        # long lines are cut into runs that each re-arm the trigger (planner.trigger)
+        runs += max(n, math.ceil(pass_photos / trig.max_run_stations(base, survey.speed_m_s)))
         length_m += on_m + n * (2.0 * survey.turnaround_m + spacing)
     speed = survey.speed_m_s
     hover = survey.trigger is TriggerMode.HOVER
     seconds = length_m / speed + (photos * (survey.hover_hold_s + speed) if hover else 0.0)
     usable = spec.vehicle.usable_flight_s or spec.vehicle.max_flight_time_min * 60.0
-    per_line = ITEMS_PER_LINE + (2 if survey.transit_speed_m_s is not None else 0)  # speed changes
-    items = lines * per_line + (2 * photos if hover else 0) + 3 + len(passes)  # + take-off, end, gimbal
+    per_line = 2 + (2 if survey.transit_speed_m_s is not None else 0)  # entry, exit, speed changes
+    per_run = 0 if hover else ITEMS_PER_RUN
+    items = lines * per_line + runs * per_run + (2 * photos if hover else 0) + 3 + len(passes)
     return PlanEstimate(
         area_km2=area_m2 / 1e6,
         passes=len(passes),

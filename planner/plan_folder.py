@@ -8,6 +8,8 @@ files (what a field team opens them with):
 - mission.kml: Google Earth
 - map.png: a person, at a glance
 - summary.json: the numbers that justify the plan (:func:`summary_json`)
+- a terrain plan's DEM, under its own name, clipped to the area and home with a margin (what
+  the plan was made on; :attr:`PlanFolder.dem_path` finds it), so the folder is self-contained
 
 Reading (:func:`read_plan_folder`): what the rest of sfap (the monitor, the check, the re-fly)
 needs from a plan folder, typed: the :class:`~planner.plan.Summary`, home, one
@@ -165,6 +167,17 @@ class PlanFolder:
         return self.summary.name
 
     @property
+    def dem_path(self) -> Path | None:
+        """A terrain plan's DEM in its folder (clipped to the area and home with a margin: what
+        the plan was made on), None for a plan over flat ground or an older folder without it."""
+        if self.terrain is None or not self.terrain.dem:
+            return None
+        for name in (Path(self.terrain.dem).name, f"dem-{Path(self.terrain.dem).name}"):
+            if (self.folder / name).is_file():
+                return self.folder / name
+        return None
+
+    @property
     def orientation(self) -> Orientation:
         return Orientation(self.summary.orientation)
 
@@ -198,6 +211,33 @@ def summary_json(plan: SurveyPlan) -> str:
     return json.dumps(data, indent=2, allow_nan=False) + "\n"
 
 
+def dem_file_name(plan: SurveyPlan) -> str | None:
+    """The name of the DEM a terrain plan carries in its folder (the name its summary records,
+    the DEM's own), None for a plan over flat ground."""
+    terrain = plan.summary.terrain
+    if terrain is None or plan.layout is None or plan.layout.dem is None:
+        return None
+    name = str(terrain["dem"])
+    return name if name not in OUTPUT_FILES else f"dem-{name}"
+
+
+#: Above this many photos the footprints are written as a GeoPackage (GPKG_FILE, layer
+#: footprints) instead of footprints.geojson: a GIS opens it through its spatial index instead
+#: of parsing every polygon. stations.geojson stays (the reader's file).
+GPKG_ABOVE_PHOTOS = 100_000
+GPKG_FILE = "footprints.gpkg"
+
+
+def output_files(plan: SurveyPlan) -> tuple[str, ...]:
+    """Every file :func:`write_outputs` writes for ``plan``, in order: OUTPUT_FILES (a large
+    plan's footprints as GPKG_FILE instead), then a terrain plan's DEM."""
+    names: tuple[str, ...] = OUTPUT_FILES
+    if len(plan.stations) > GPKG_ABOVE_PHOTOS:
+        names = tuple(GPKG_FILE if n == "footprints.geojson" else n for n in names)
+    dem = dem_file_name(plan)
+    return names if dem is None else (*names, dem)
+
+
 def write_outputs(
     plan: SurveyPlan,
     out_dir: str | os.PathLike[str],
@@ -229,14 +269,24 @@ def write_outputs(
         "map.png": lambda p: render_map_png(plan, p),
         SUMMARY_FILE: lambda p: atomic_write_text(p, summary_json(plan)),
     }
+    if len(plan.stations) > GPKG_ABOVE_PHOTOS:
+        from .formats.geopackage import write_footprints_gpkg
+
+        writers[GPKG_FILE] = lambda p: write_footprints_gpkg(plan, p)
+    dem_name = dem_file_name(plan)
+    if dem_name is not None:
+        assert plan.layout is not None and plan.layout.dem is not None
+        dem = plan.layout.dem
+        writers[dem_name] = lambda p: dem.write_geotiff(p)
+    names = output_files(plan)
     final = Path(out_dir)
     with staged_output_dir(final, overwrite=overwrite) as staging:
-        for name in OUTPUT_FILES:
+        for name in names:
             log.debug("writing %s", name)
             writers[name](staging / name)
             if progress is not None:
                 progress(1)
-    return [final / name for name in OUTPUT_FILES]
+    return [final / name for name in names]
 
 
 # --- reading ------------------------------------------------------------------------------------

@@ -33,9 +33,9 @@ class PlanRun:
     @property
     def file_count(self) -> int:
         """How many files :meth:`write` writes (for a progress bar)."""
-        from .plan_folder import OUTPUT_FILES
+        from .plan_folder import output_files
 
-        return len(OUTPUT_FILES) * (1 + len(self.sorties))
+        return len(output_files(self.plan)) + sum(len(output_files(s.plan)) for s in self.sorties)
 
     def write(
         self,
@@ -75,12 +75,14 @@ def plan_spec(
     resume_record: str | os.PathLike[str] | None = None,
     max_photos: int | None = MAX_PHOTOS,
     announce: Callable[[PlanEstimate], None] | None = None,
+    stage: Callable[[str], None] | None = None,
 ) -> PlanRun:
     """Plan the mission spec ``spec_file``; with ``resume_from`` (a station, 0-based in flight
     order) or ``resume_record`` (the folder sfap monitor recorded, or its triggers.csv: after
     the last station it reached) only what is left. Sorties when the spec's vehicle has an
     endurance. A block estimated beyond ``max_photos`` photos is refused at once (planner.estimate);
-    ``announce(estimate)`` is called first, before the planning itself."""
+    ``announce(estimate)`` is called first, before the planning itself; ``stage(what)`` at each
+    step of the planning (progress)."""
     from .resume import last_station_from_record, resume_plan
     from .spec import load_spec
     from .survey import plan_survey
@@ -94,7 +96,7 @@ def plan_spec(
         guess = estimate_survey(spec)
         if guess is not None:
             announce(guess)
-    plan = plan_survey(spec, max_photos=max_photos)
+    plan = plan_survey(spec, max_photos=max_photos, stage=stage)
     if resume_record is not None:
         resume_from = last_station_from_record(plan, Path(resume_record)) + 1
         if resume_from >= len(plan.stations):
@@ -108,5 +110,7 @@ def plan_spec(
     if spec.vehicle.endurance_s is not None:
         from .sorties import split_sorties
 
+        if stage is not None:
+            stage("splitting into sorties")
         sorties = tuple(split_sorties(plan))
     return PlanRun(spec=spec, plan=plan, sorties=sorties, resumed_from_station=resume_from)

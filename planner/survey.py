@@ -27,6 +27,7 @@ from __future__ import annotations
 import itertools
 import logging
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -50,10 +51,12 @@ from .spec import MissionSpec, TriggerMode
 log = logging.getLogger(__name__)
 
 
-def plan_survey(spec: MissionSpec, *, max_photos: int | None = MAX_PHOTOS) -> SurveyPlan:
+def plan_survey(
+    spec: MissionSpec, *, max_photos: int | None = MAX_PHOTOS, stage: Callable[[str], None] | None = None
+) -> SurveyPlan:
     """Plan the survey a spec describes. Raises SfapError subclasses with the fix; a block
     estimated at more than ``max_photos`` photos is refused at once (planner.estimate; None: no
-    limit)."""
+    limit). ``stage(what)`` is told each step of a block's planning as it starts (progress)."""
     survey = spec.survey
     vehicle = spec.vehicle
     if vehicle.type is VehicleType.FIXED_WING and survey.trigger is TriggerMode.HOVER:
@@ -68,7 +71,7 @@ def plan_survey(spec: MissionSpec, *, max_photos: int | None = MAX_PHOTOS) -> Su
         return plan_corridor(spec)
     polygons = load_polygons(spec.area_path)
     exclusions = [p for path in spec.exclude_paths for p in load_polygons(path)]
-    return plan_polygons(spec, polygons, exclusions, max_photos=max_photos)
+    return plan_polygons(spec, polygons, exclusions, max_photos=max_photos, stage=stage)
 
 
 def estimate_survey(spec: MissionSpec) -> PlanEstimate | None:
@@ -129,6 +132,7 @@ def plan_polygons(
     exclusions: list[Polygon],
     *,
     max_photos: int | None = MAX_PHOTOS,
+    stage: Callable[[str], None] | None = None,
 ) -> SurveyPlan:
     """Plan over polygons already loaded (lon/lat degrees); :func:`plan_survey` reads them from
     the spec's files."""
@@ -156,12 +160,18 @@ def plan_polygons(
     blocked_xy = steps.blocked_xy(spec, site.zones_xy)
     dem = steps.read_dem(spec, site.area_lonlat, home) if spec.terrain is not None else None
 
+    def step(what: str) -> None:
+        if stage is not None:
+            stage(what)
+
     def attempt(scale: float) -> _Attempt:
         del warnings[:]
+        step(f"laying out the lines of {len(pass_defs)} pass{'es' if len(pass_defs) != 1 else ''}")
         pass_plans, views, speed_m_s = _lay_out_passes(
             spec, pass_defs, area_xy, blocked_xy, alt_agl_m, gsd_cm, scale, warnings
         )
         # 4-5. route, mission and stations --------------------------------------------------------
+        step("building the flight path, its stations and items")
         built = steps.build(
             spec, site, home, home_xy, alt_agl_m=alt_agl_m, speed_m_s=speed_m_s, passes=pass_plans
         )
@@ -170,6 +180,7 @@ def plan_polygons(
     laid, fit = steps.fit_to_terrain(
         spec, site, home, home_xy, alt_agl_m=alt_agl_m, dem=dem, attempt=attempt, warnings=warnings
     )
+    step("the summary")
     pass_plans = laid.terrain_passes
     passes = tuple(
         FlightPass(

@@ -107,6 +107,20 @@ class Dem:
         logger.info("DEM %s: %d x %d cells read", target.name, elevation.shape[1], elevation.shape[0])
         return cls(path=target, elevation=elevation, valid=valid, transform=transform, crs=crs, **fields)
 
+    def write_geotiff(self, path: str | Path) -> None:
+        """Write the DEM as read (the part read, when it was clipped to bounds) as a GeoTIFF of its
+        own: float32 (exact for the float32 and integer DEMs GIS tools write), nodata NaN,
+        DEFLATE-compressed, same CRS and geotransform."""
+        import rasterio
+
+        rows, cols = self.elevation.shape
+        data = np.where(self.valid, self.elevation, np.nan).astype(np.float32)
+        with rasterio.open(
+            Path(path), "w", driver="GTiff", height=rows, width=cols, count=1, dtype="float32",
+            crs=self.crs.to_wkt(), transform=self.transform, nodata=float("nan"), compress="deflate",
+        ) as out:  # fmt: skip
+            out.write(data, 1)
+
     @property
     def description(self) -> str:
         rows, cols = self.elevation.shape

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 
 import click
@@ -86,7 +87,9 @@ def command(
 ) -> None:
     """Plan a survey from SPEC_FILE (a mission spec in TOML) and write, into OUTPUT:
     mission.plan (QGroundControl), mission.waypoints (QGC WPL 110), flight_lines.geojson,
-    stations.geojson, footprints.geojson, area.geojson, mission.kml, map.png and summary.json.
+    stations.geojson, footprints.geojson, area.geojson, mission.kml, map.png and summary.json;
+    a terrain plan also carries its DEM, clipped to the area and home with a margin, so the
+    folder is self-contained (the check, the monitor and the re-fly read it there).
 
     Distances in metres, GSD in cm, altitudes above ground (AGL) or home. The files are
     written all at once: on any error nothing is left behind.
@@ -102,14 +105,22 @@ def command(
     Example: sfap plan missions/bardenas-gully.toml -o out/gully
     """
     with warnings_once("planner") as handled:  # each warning printed once
+        started = time.monotonic()
+        loud = False  # a plan above ANNOUNCE_PHOTOS takes more than a few seconds: say each step
 
         def announce(guess: PlanEstimate) -> None:
-            if guess.photos > ANNOUNCE_PHOTOS and not as_json:
+            nonlocal loud
+            loud = guess.photos > ANNOUNCE_PHOTOS and not as_json and not no_progress
+            if loud:
                 click.echo(f"planning {guess.text()}", err=True)
+
+        def stage(what: str) -> None:
+            if loud:
+                click.echo(f"  {time.monotonic() - started:6.1f} s  {what}", err=True)
 
         run = plan_spec(
             spec_file, resume_from=resume_from, resume_record=resume_record, max_photos=max_photos,
-            announce=announce,
+            announce=announce, stage=stage,
         )  # fmt: skip
         with progress("writing", run.file_count, enabled=not no_progress and not as_json) as advance:
             run.write(out_dir, overwrite=overwrite, progress=advance)

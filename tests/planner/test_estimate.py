@@ -93,3 +93,21 @@ def test_a_plan_beyond_the_limit_is_refused_at_once_and_the_flag_raises_it(tmp_p
     )
     assert result.exit_code == 0, result.output
     assert (out / "summary.json").is_file()
+
+
+def test_a_long_plan_shows_its_estimate_and_steps_on_stderr(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import sfap.commands.plan as command
+
+    monkeypatch.setattr(command, "ANNOUNCE_PHOTOS", 10)  # as if this small plan took long
+    out = tmp_path / "out"
+    result = CliRunner().invoke(cli, ["plan", str(MISSIONS / "bardenas-gully.toml"), "-o", str(out)])
+    assert result.exit_code == 0, result.output
+    lines = result.stderr.splitlines()
+    assert lines[0].startswith("planning about ") and "photos" in lines[0]
+    assert any("laying out the lines" in line for line in lines)
+    assert any("building the flight path" in line for line in lines)
+    quiet = CliRunner().invoke(cli, ["plan", str(MISSIONS / "bardenas-gully.toml"), "-o", str(tmp_path / "q"),
+                                     "--no-progress"])  # fmt: skip
+    assert quiet.exit_code == 0 and "planning about" not in quiet.stderr

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import shapely
 from survey_oracles import MISSIONS, make_spec
 from test_survey import to_lonlat_polygon
 
@@ -50,7 +51,8 @@ def written(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFac
     else:
         plan = plan_survey(load_spec(MISSIONS / f"{request.param}.toml"))
     folder = tmp_path_factory.mktemp("plans") / request.param
-    assert [p.name for p in write_outputs(plan, folder)] == list(OUTPUT_FILES)
+    dem = ["bardenas-gully-dem.tif"] if request.param == "bardenas-gully-terrain" else []
+    assert [p.name for p in write_outputs(plan, folder)] == [*OUTPUT_FILES, *dem]
     return plan, folder
 
 
@@ -175,3 +177,78 @@ def test_damaged_folders_are_named_errors(written: Written, tmp_path: Path) -> N
     (copy / "stations.geojson").write_text(json.dumps(stations))
     with pytest.raises(PlanFolderError, match=r"stations.geojson: a station lacks 'lat_deg'"):
         read_plan_folder(copy)
+
+
+def test_a_terrain_plan_carries_its_dem_clipped_and_reads_it_back(tmp_path: Path) -> None:
+    """The folder is self-contained: the DEM the plan was made on, clipped to the area with a
+    margin, is in it (the check, the monitor and the re-fly find it there), its elevations the
+    original's; sorties carry it too; a flat plan carries none."""
+    import rasterio
+
+    from planner.plan_run import plan_spec
+    from planner.terrain import Dem
+
+    source = (
+        (MISSIONS / "bardenas-gully-terrain.toml")
+        .read_text()
+        .replace('"bardenas-gully', f'"{MISSIONS}/bardenas-gully')
+    )
+    spec_file = tmp_path / "gully.toml"
+    spec_file.write_text(source.replace("[vehicle]\n", "[vehicle]\nendurance_s = 1500\n"))
+    run = plan_spec(spec_file)
+    assert run.sorties
+    written = run.write(tmp_path / "out")
+    assert len(written) == run.file_count  # the progress bar's count
+    folder = read_plan_folder(tmp_path / "out")
+    assert folder.dem_path == tmp_path / "out" / "bardenas-gully-dem.tif"
+    original = Dem.from_geotiff(MISSIONS / "bardenas-gully-dem.tif")
+    with rasterio.open(MISSIONS / "bardenas-gully-dem.tif") as a, rasterio.open(folder.dem_path) as b:
+        assert b.crs == a.crs and b.res == a.res
+        # clipped: no larger than the original, and it holds every station with its footprint
+        assert b.width * b.height <= a.width * a.height
+    st = folder.stations
+    x, y = np.asarray(st.lon_deg), np.asarray(st.lat_deg)
+    from pyproj import Transformer
+
+    e, n = Transformer.from_crs("EPSG:4326", original.crs, always_xy=True).transform(x, y)
+    with rasterio.open(MISSIONS / "bardenas-gully-dem.tif") as a, rasterio.open(folder.dem_path) as b:
+        za = np.array([v[0] for v in a.sample(zip(e, n, strict=True))])
+        zb = np.array([v[0] for v in b.sample(zip(e, n, strict=True))])
+    np.testing.assert_allclose(zb, za, atol=1e-3)
+    for k in range(1, len(run.sorties) + 1):
+        sortie = read_plan_folder(tmp_path / "out" / f"sortie-{k:02d}")
+        assert sortie.dem_path is not None and sortie.dem_path.parent == sortie.folder
+    flat = plan_survey(load_spec(MISSIONS / "bardenas-gully.toml"))
+    write_outputs(flat, tmp_path / "flat")
+    assert read_plan_folder(tmp_path / "flat").dem_path is None
+    assert not list((tmp_path / "flat").glob("*.tif"))
+
+
+def test_a_large_plan_writes_its_footprints_as_a_geopackage(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Above the stated size the footprints go to a GeoPackage instead of footprints.geojson;
+    read back by GDAL through pyogrio, feature for feature."""
+    from pyogrio import list_layers
+    from pyogrio.raw import read
+
+    import planner.plan_folder as pf
+
+    plan = plan_survey(load_spec(MISSIONS / "field-concave.toml"))
+    monkeypatch.setattr(pf, "GPKG_ABOVE_PHOTOS", len(plan.stations) - 1)
+    names = [p.name for p in write_outputs(plan, tmp_path / "out")]
+    assert "footprints.gpkg" in names and "footprints.geojson" not in names and "stations.geojson" in names
+    gpkg = tmp_path / "out" / "footprints.gpkg"
+    assert [str(n) for n, _ in list_layers(gpkg)] == ["footprints"]
+    st = plan.stations
+    meta, _, polygons, fields = read(gpkg, layer="footprints")
+    assert meta["crs"] == "EPSG:4326"
+    column = dict(zip(meta["fields"], fields, strict=True))
+    np.testing.assert_array_equal(column["station"], np.arange(len(st)))
+    np.testing.assert_array_equal(column["line"], st.line_index)
+    np.testing.assert_allclose(column["gsd_cm"], st.gsd_cm)
+    shapes = shapely.from_wkb(polygons)
+    assert len(shapes) == len(st) and all(shapely.is_ccw(s.exterior) for s in shapes)
+    expected = shapely.polygons(st.footprint_lonlat_deg)
+    assert np.all(shapely.equals_exact(shapely.normalize(shapes), shapely.normalize(expected), 1e-12))
+    assert read_plan_folder(tmp_path / "out").stations.lon_deg.shape == (len(st),)  # the reader's file stays
