@@ -33,7 +33,9 @@ from typing import Any
 
 import numpy as np
 import pytest
+from plane_flight import fly_mission, line_fit, photo_line_distances_m
 from pymavlink import mavutil
+from shared_data import SHARED_DATA
 
 from acquisition.simulator import plane
 from acquisition.simulator.flight import FlightConfig, FlightSimulator
@@ -43,8 +45,6 @@ from acquisition.transfer import home_item
 from planner.mission import Autopilot, HomePosition, MavFrame, MissionItem, VehicleType
 from planner.spec import load_spec, parse_spec
 from planner.survey import plan_survey
-from tests.support.plane_flight import fly_mission, line_fit, photo_line_distances_m
-from tests.support.shared_data import SHARED_DATA
 
 HOME = HomePosition(lat_deg=42.10, lon_deg=-0.41, alt_amsl_m=400.0)
 MISSIONS = Path(__file__).resolve().parents[2] / "missions"

@@ -12,12 +12,13 @@ with the code under test; the defaults against the ArduPlane 4.5.6 SITL log in
 
 from __future__ import annotations
 
+import json
 import os
 from pathlib import Path
 from typing import Any
 
 import pytest
-from pymavlink import mavutil
+from pymavlink import mavutil, mavwp
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 from shared_data import SHARED_DATA
 
@@ -250,3 +251,48 @@ def test_the_requirements_load_no_mavlink() -> None:
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
+    # the planner's own module imports nothing of acquisition (nor pymavlink), and acquisition
+    # uses the very same requirements
+    code = (
+        "import sys, planner.vehicle_params as p; "
+        "print(sorted({m.split('.')[0] for m in sys.modules} & {'acquisition', 'pymavlink', 'sfap'}))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"
+    import planner.vehicle_params as planned
+
+    assert required_parameters is planned.required_parameters and RTL_AUTOLAND is planned.RTL_AUTOLAND
+
+
+@pytest.mark.parametrize(
+    ("mission", "expected"),
+    [
+        ("huesca-plane-block", ["RTL_AUTOLAND", "CAM1_TYPE"]),
+        ("quarry-block", ["CAM1_TYPE"]),
+        ("field-concave", []),
+    ],
+)
+def test_a_plan_states_the_parameters_it_needs(tmp_path: Path, mission: str, expected: list[str]) -> None:
+    """summary.json and `sfap plan`'s table name them. The expectation follows ArduPilot's
+    rules read off the written mission file with pymavlink: ArduPlane with DO_LAND_START needs
+    RTL_AUTOLAND, an ArduPilot mission with a trigger distance needs CAM1_TYPE, PX4 nothing."""
+    from click.testing import CliRunner
+
+    from sfap.cli import cli
+
+    out = tmp_path / "out"
+    result = CliRunner().invoke(cli, ["plan", str(MISSIONS / f"{mission}.toml"), "-o", str(out)])
+    assert result.exit_code == 0, result.output
+    summary = json.loads((out / "summary.json").read_text())
+    names = [p["name"] for p in summary["vehicle_parameters"]]
+    assert names == expected
+    if (out / "mission.waypoints").exists() and expected:
+        loader = mavwp.MAVWPLoader()
+        loader.load(str(out / "mission.waypoints"))
+        commands = {loader.wp(i).command for i in range(loader.count())}
+        assert ("RTL_AUTOLAND" in names) == (mavutil.mavlink.MAV_CMD_DO_LAND_START in commands)
+        assert ("CAM1_TYPE" in names) == (mavutil.mavlink.MAV_CMD_DO_SET_CAM_TRIGG_DIST in commands)
+    for p in summary["vehicle_parameters"]:
+        assert f"vehicle parameter {p['name']}" in result.output and p["needed"] in result.output
+    if not expected:
+        assert "vehicle parameter" not in result.output
