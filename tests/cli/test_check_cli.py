@@ -288,21 +288,24 @@ def test_a_terrain_plan_is_judged_on_its_own_dem_and_take_off(terrain_plan: Path
     heights = data["height_agl_m"]
     assert heights["min"] == pytest.approx(oracle.min(), abs=0.02)
     assert heights["max"] == pytest.approx(oracle.max(), abs=0.02)
-    # Without --dem, and the DEM not in the plan folder: the planner's heights over its DEM, said so.
-    result = CliRunner().invoke(cli, ["check", str(terrain_plan), "--json", "--no-progress"])
-    assert result.exit_code == 0, result.output
-    data = json.loads(result.output)
-    assert "the plan's heights above its DEM" in data["ground"]
-    assert data["height_agl_m"]["max"] < 80.0  # not the 138 m above home of flat ground at home
-    # The DEM copied into the plan folder is found and used.
-    shutil.copy(dem, terrain_plan / dem.name)
+    # Without --dem, and the DEM not in the plan folder (a folder from before sfap plan copied it
+    # there): the planner's heights over its DEM, said so.
+    carried = terrain_plan / dem.name
+    kept = carried.read_bytes()  # sfap plan copies the DEM it was made on into the folder
+    carried.unlink()
     try:
         result = CliRunner().invoke(cli, ["check", str(terrain_plan), "--json", "--no-progress"])
+        assert result.exit_code == 0, result.output
         data = json.loads(result.output)
-        assert "the plan's own DEM" in data["ground"]
-        assert data["height_agl_m"]["min"] == pytest.approx(oracle.min(), abs=0.02)
+        assert "the plan's heights above its DEM" in data["ground"]
+        assert data["height_agl_m"]["max"] < 80.0  # not the 138 m above home of flat ground at home
     finally:
-        (terrain_plan / dem.name).unlink()
+        carried.write_bytes(kept)
+    # The DEM in the plan folder is found and used.
+    result = CliRunner().invoke(cli, ["check", str(terrain_plan), "--json", "--no-progress"])
+    data = json.loads(result.output)
+    assert "the plan's own DEM" in data["ground"]
+    assert data["height_agl_m"]["min"] == pytest.approx(oracle.min(), abs=0.02)
 
 
 def test_a_flat_plan_with_a_dem_takes_off_from_the_dem(plans: tuple[Path, Path]) -> None:
