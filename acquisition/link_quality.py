@@ -71,8 +71,9 @@ class SeqCounter:
             self.duplicates += 1
             return
         counted_at = self.missing.pop(seq, None)
-        if counted_at is not None and self.position - counted_at < LATE_WINDOW:
-            # counted lost a few messages ago and here it is: late (reordered), not lost
+        if counted_at is not None and self.position - counted_at <= LATE_WINDOW:
+            # counted lost at most LATE_WINDOW numbers behind the newest (the numbers the jump
+            # recorded, and the horizon the pruning below keeps) and here it is: late, not lost
             self.received += 1
             self.late += 1
             self.lost -= 1

@@ -86,13 +86,15 @@ def has_home_item(autopilot: Autopilot, mission_type: MissionType | int) -> bool
     return autopilot is Autopilot.ARDUPILOT and int(mission_type) == MissionType.MISSION
 
 
-#: Commands ArduPilot stores with a location (AP_Mission's ``copy_location``): params 5-7 are
+#: Commands ArduPilot stores with a location (AP_Mission::stored_in_location): params 5-7 are
 #: latitude, longitude and altitude in a global frame, and read back so. The navigation
-#: commands (:attr:`planner.mission.MavCmd.is_nav`) and NAV_CONTINUE_AND_CHANGE_ALT (30),
-#: NAV_PAYLOAD_PLACE (94), DO_SET_HOME, DO_LAND_START, DO_SET_ROI_LOCATION and DO_SET_ROI (201).
+#: commands with a position (:attr:`planner.mission.MavCmd.is_nav`: WAYPOINT, LOITER_UNLIM,
+#: LOITER_TURNS, LOITER_TIME, LAND, TAKEOFF, LOITER_TO_ALT, SPLINE_WAYPOINT, VTOL_TAKEOFF,
+#: VTOL_LAND), NAV_CONTINUE_AND_CHANGE_ALT (30), NAV_GUIDED_ENABLE (92), NAV_PAYLOAD_PLACE (94),
+#: DO_SET_HOME, DO_LAND_START, DO_GO_AROUND (191) and DO_SET_ROI (201).
 ARDUPILOT_LOCATION_COMMANDS: frozenset[int] = frozenset(
     {int(command) for command in MavCmd if command.is_nav}
-    | {30, 94, MavCmd.DO_SET_HOME, MavCmd.DO_LAND_START, MavCmd.DO_SET_ROI_LOCATION, 201}
+    | {30, 92, 94, MavCmd.DO_SET_HOME, MavCmd.DO_LAND_START, 191, 201}
 )
 
 #: AP_Mission::sanity_check_params: the params (1-4) that may be NaN, per command; any other

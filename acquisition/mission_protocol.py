@@ -117,11 +117,19 @@ class Session:
     def deadline(self) -> float:
         return self.clock.monotonic() + self.timeout_s
 
-    def vehicle_said(self) -> str:
-        if not self.status_texts:
+    def vehicle_said(self, result: int | None = None) -> str:
+        """The vehicle's recent warnings, quoted; for a refusal with MAV_MISSION_RESULT
+        ``result``, not those that explain another refusal (ArduPilot's "Only N items are
+        supported" belongs to NO_SPACE alone)."""
+        texts = [t for t in self.status_texts if result is None or _explains(t) in (None, result)]
+        if not texts:
             return ""
-        recent = list(dict.fromkeys(reversed(self.status_texts)))[:3][::-1]
+        recent = list(dict.fromkeys(reversed(texts)))[:3][::-1]
         return " (the vehicle said: " + "; ".join(f"'{t}'" for t in recent) + ")"
+
+    def forget_texts(self) -> None:
+        """The refusal these warnings explained was dealt with: they explain nothing after."""
+        self.status_texts.clear()
 
     def msg(self, name: str, **fields: Any) -> Any:
         from pymavlink.dialects.v20 import ardupilotmega as mavlink2
@@ -161,9 +169,9 @@ def send_items(
     attempts = 0
     no_space_tries = 0
 
-    def fail(reason: str) -> MissionTransferError:
+    def fail(reason: str, result: int | None = None) -> MissionTransferError:
         return MissionTransferError(
-            f"upload to {link.url} failed: {reason}{session.vehicle_said()}",
+            f"upload to {link.url} failed: {reason}{session.vehicle_said(result)}",
             mission_state=failed_state(bool(sent)),
         )
 
@@ -228,6 +236,7 @@ def send_items(
                 )
                 log.info(note)
                 notes.append(note)
+                session.forget_texts()  # "Only 0 items are supported" answered this refusal only
                 session.clock.sleep(no_space_wait_s)
                 link.send(session.msg("mission_count", count=count))
                 attempts = 0
@@ -246,7 +255,7 @@ def send_items(
             )
             if code == MissionResult.NO_SPACE and not sent:
                 where = f" ({count} items, refused {no_space_tries + 1} times)"
-            raise fail(describe_mission_result(code) + where)
+            raise fail(describe_mission_result(code) + where, code)
         seq = int(message.seq)
         if not 0 <= seq < count:
             log.debug("request for seq %d outside 0-%d ignored", seq, count - 1)
@@ -265,6 +274,13 @@ def send_items(
 _CAPACITY_RE = re.compile(r"Only (\d+) items are supported", re.I)
 
 
+def _explains(text: str) -> int | None:
+    """The MAV_MISSION_RESULT a vehicle's warning is known to explain, or None."""
+    if _CAPACITY_RE.search(text):
+        return int(MissionResult.NO_SPACE)
+    return None
+
+
 def _capacity_said(session: Session, *, deadline_s: float) -> int | None:
     """The capacity in the vehicle's "Only N items are supported" (ArduPilot), waiting up to
     ``deadline_s`` for it when it has not come yet; None when it does not say."""
@@ -276,11 +292,12 @@ def _capacity_said(session: Session, *, deadline_s: float) -> int | None:
                 return int(found.group(1))
         return None
 
-    value = said()
-    if value is not None:
-        return value
-    session.recv(set(), session.clock.monotonic() + deadline_s)  # collects STATUSTEXT on the way
-    return said()
+    clock = session.clock
+    deadline = clock.monotonic() + deadline_s
+    while (value := said()) is None and clock.monotonic() < deadline:
+        # collects STATUSTEXT on the way; stops as soon as the capacity is said
+        session.recv(set(), min(deadline, clock.monotonic() + 0.05))
+    return value
 
 
 def _too_large(url: str, count: int, capacity: int | None, session: Session) -> MissionTooLargeError:

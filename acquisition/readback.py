@@ -11,7 +11,7 @@ float32; anything else is reported as an :class:`ItemDifference`.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 from planner.mission import Autopilot, MavCmd, MavFrame, MissionItem, VehicleType
@@ -62,25 +62,88 @@ class ItemDifference:
         }
 
 
-# How ArduPilot stores items (AP_Mission, REFERENCES.md section 3). A parameter passes when it
-# reads back exactly (to float32) or as the storage rule makes it:
-#   "whole": an unsigned integer (hold seconds, flags); "byte": clamped to 0-255 (Plane radii);
-#   "zero": not stored, reads back 0.
-_Rule = str
-_AP_COPTER_WAYPOINT: dict[int, _Rule] = {1: "whole", 2: "zero", 3: "zero", 4: "zero"}
-_AP_PLANE_WAYPOINT: dict[int, _Rule] = {1: "zero", 2: "byte", 3: "byte", 4: "zero"}
+# How ArduPilot stores items: AP_Mission::mavlink_int_to_mission_cmd packs each command into a
+# Mission_Command (``p1`` a uint16_t, the typed Content structs of AP_Mission.h) and
+# mission_cmd_to_mavlink_int unpacks it; a param not unpacked there reads back 0. Each rule
+# maps the value sent to the value read back (C's float -> integer conversion truncates; the
+# ARM targets saturate at the type's range). A parameter passes when it reads back exactly
+# (to float32) or as its rule makes it. REFERENCES.md section 3; tests/acquisition/
+# test_storage_rules.py quotes the source line of every rule.
+_Rule = Callable[[float], float]
+
+
+def _uint(bits: int) -> _Rule:
+    top = float((1 << bits) - 1)
+    return lambda v: min(max(float(math.trunc(v)), 0.0), top)
+
+
+def _int(bits: int) -> _Rule:
+    half = float(1 << (bits - 1))
+    return lambda v: min(max(float(math.trunc(v)), -half), half - 1.0)
+
+
+def _zero(_v: float) -> float:
+    return 0.0
+
+
+def _byte_radius(v: float) -> float:  # MIN(0xFF, (uint16_t)param)
+    return min(_uint(16)(v), 255.0)
+
+
+def _signed_uint16(v: float) -> float:  # p1 = fabsf(param); loiter_ccw = param < 0
+    return _uint(16)(abs(v)) * (-1.0 if v < 0 else 1.0)
+
+
+def _direction(v: float) -> float:  # loiter_ccw ? -1 : 1
+    return -1.0 if v < 0 else 1.0
+
+
+def _exit_flag(v: float) -> float:  # loiter_xtrack = (param4 > 0)
+    return 1.0 if v > 0 else 0.0
+
+
+def _loiter_turns_radius(v: float) -> float:  # <= 255 m as a byte, above as a byte of tens
+    radius = abs(v)
+    stored = _uint(8)(radius) if radius <= 255 else _uint(8)(min(255.0, radius * 0.1)) * 10.0
+    return stored * (-1.0 if v < 0 else 1.0)
+
+
+_U8, _U16, _I8, _I16 = _uint(8), _uint(16), _int(8), _int(16)
+_AP_COPTER_WAYPOINT: dict[int, _Rule] = {1: _U16, 2: _zero, 3: _zero, 4: _zero}
+_AP_PLANE_WAYPOINT: dict[int, _Rule] = {1: _zero, 2: _byte_radius, 3: _byte_radius, 4: _zero}
+_ALL_ZERO: dict[int, _Rule] = {1: _zero, 2: _zero, 3: _zero, 4: _zero}
 _AP_RULES: dict[int, dict[int, _Rule]] = {
-    MavCmd.NAV_TAKEOFF: {1: "whole", 2: "zero", 3: "zero", 4: "zero"},
-    MavCmd.NAV_LAND: {1: "whole", 2: "zero", 3: "zero", 4: "zero"},
-    MavCmd.NAV_LOITER_UNLIM: {1: "zero", 2: "zero", 3: "whole", 4: "zero"},
-    MavCmd.NAV_LOITER_TURNS: {1: "whole", 2: "zero", 3: "whole", 4: "zero"},
-    MavCmd.NAV_LOITER_TIME: {1: "whole", 2: "zero", 3: "whole", 4: "zero"},
-    MavCmd.NAV_RETURN_TO_LAUNCH: {n: "zero" for n in range(1, 8)},
-    MavCmd.DO_MOUNT_CONTROL: {4: "zero", 5: "zero", 6: "zero", 7: "zero"},
-    MavCmd.DO_SET_CAM_TRIGG_DIST: {2: "zero", 3: "whole"},
-    MavCmd.DO_CHANGE_SPEED: {1: "whole", 4: "zero"},
-    MavCmd.IMAGE_START_CAPTURE: {1: "whole", 3: "whole", 4: "whole"},
-    MavCmd.DO_DIGICAM_CONTROL: {n: "whole" for n in range(1, 7)},
+    MavCmd.NAV_TAKEOFF: {1: _U16, 2: _zero, 3: _zero, 4: _zero},
+    MavCmd.NAV_LAND: {1: _U16, 2: _zero, 3: _zero, 4: _direction},
+    MavCmd.NAV_LOITER_TO_ALT: {1: _zero, 2: _signed_uint16, 3: _zero, 4: _exit_flag},
+    MavCmd.NAV_LOITER_UNLIM: {1: _zero, 2: _zero, 3: _signed_uint16, 4: _zero},
+    MavCmd.NAV_LOITER_TURNS: {
+        1: lambda v: float(int(_U16(min(255.0, v))) & 0xFF),
+        2: _zero,
+        3: _loiter_turns_radius,
+        4: _exit_flag,
+    },
+    MavCmd.NAV_LOITER_TIME: {1: _U16, 2: _zero, 3: _direction, 4: _exit_flag},
+    MavCmd.NAV_SPLINE_WAYPOINT: {1: _U16, 2: _zero, 3: _zero, 4: _zero},
+    MavCmd.NAV_VTOL_TAKEOFF: _ALL_ZERO,
+    MavCmd.NAV_VTOL_LAND: {1: _U16, 2: _zero, 3: _zero, 4: _zero},
+    MavCmd.NAV_RETURN_TO_LAUNCH: {n: _zero for n in range(1, 8)},
+    MavCmd.DO_LAND_START: _ALL_ZERO,
+    MavCmd.DO_MOUNT_CONTROL: {4: _zero, 5: _zero, 6: _zero, 7: _zero},
+    MavCmd.DO_GIMBAL_MANAGER_PITCHYAW: {
+        1: _I8,
+        2: _I16,
+        3: _I8,
+        4: _I8,
+        6: _zero,
+        # flags (x) and gimbal id (z) are kept as bytes: one that does not fit is a real
+        # difference (another gimbal, other flags), not a storage rule
+    },
+    MavCmd.DO_SET_CAM_TRIGG_DIST: {2: _zero, 3: _U8, 4: _zero},
+    MavCmd.DO_CHANGE_SPEED: {1: _U8, 4: _zero},
+    MavCmd.IMAGE_START_CAPTURE: {1: _U8, 3: _U16, 4: _U16},
+    MavCmd.DO_DIGICAM_CONTROL: {1: _U8, 2: _U8, 3: _I8, 4: _U8, 5: _U8, 6: _U8},
+    MavCmd.DO_JUMP: {1: _U16, 2: _I16, 3: _zero, 4: _zero},
 }
 _AP_ALT_STEP_M = 0.01  # ArduPilot stores altitudes as integer centimetres
 
@@ -109,7 +172,7 @@ def _same32(a: float | None, b: float | None) -> bool:
 # How PX4 stores positional items (MavlinkMissionManager::parse_mavlink_mission_item and
 # format_mavlink_mission_item): only the fields it keeps come back, the others read 0, and yaw
 # is kept in radians wrapped to -pi..pi ("yaw": the same heading, to 1e-3 deg).
-_PX4_RULES: dict[int, dict[int, _Rule]] = {
+_PX4_RULES: dict[int, dict[int, str]] = {
     MavCmd.NAV_WAYPOINT: {3: "zero", 4: "yaw"},
     MavCmd.NAV_TAKEOFF: {1: "zero", 2: "zero", 3: "zero", 4: "yaw"},
     MavCmd.NAV_LAND: {1: "zero", 3: "zero", 4: "yaw"},
@@ -120,27 +183,31 @@ _PX4_RULES: dict[int, dict[int, _Rule]] = {
 }
 
 
-def _rule_allows(rule: _Rule | None, sent: float | None, received: float | None) -> bool:
+def _yaw_same(sent: float | None, received: float) -> bool:
+    """PX4's "yaw": the same heading, wrapped to -180..180, to 1e-3 deg."""
+    if sent is None or not math.isfinite(sent) or not math.isfinite(received):
+        return False
+    turn = (received - sent) % 360.0
+    return min(turn, 360.0 - turn) <= 1e-3
+
+
+def _rule_allows(rule: _Rule | str | None, sent: float | None, received: float | None) -> bool:
     if rule is None or received is None:
         return False
     if rule == "yaw":
-        if sent is None or not math.isfinite(sent) or not math.isfinite(received):
-            return False
-        turn = (received - sent) % 360.0
-        return min(turn, 360.0 - turn) <= 1e-3
+        return _yaw_same(sent, received)
     if rule == "zero":
         return received == 0.0
+    if isinstance(rule, str):
+        return False
+    # NaN is stored as 0 where AP_Mission lets it through (sanity_check_params)
     source = 0.0 if sent is None or not math.isfinite(sent) else sent
-    if rule == "whole":
-        options = {min(max(math.trunc(source), 0), 65535), min(max(round(source), 0), 65535)}
-        return received in options
-    if rule == "byte":
-        options = {min(max(math.trunc(source), 0), 255), min(max(round(source), 0), 255)}
-        return received in options
-    return False
+    return float32(rule(source)) == float32(received)
 
 
 def _ap_rules(command: int, vehicle_type: VehicleType | None) -> dict[int, _Rule]:
+    """The rules of ``command`` (NAV_WAYPOINT: ArduPlane's, for FIXED_WING and VTOL, or
+    Copter's); none for a command whose params are stored as float32."""
     if command == MavCmd.NAV_WAYPOINT:
         plane = vehicle_type in (VehicleType.FIXED_WING, VehicleType.VTOL)
         return _AP_PLANE_WAYPOINT if plane else _AP_COPTER_WAYPOINT
@@ -182,8 +249,9 @@ def _compare_item(
     if not ardupilot and sent.autocontinue != got.autocontinue:
         # ArduPilot does not store autocontinue (it always continues) and reads back 1.
         out.append(diff("autocontinue", str(sent.autocontinue), str(got.autocontinue)))
+    rules: dict[int, _Rule] | dict[int, str]
     if fence:
-        rules: dict[int, _Rule] = {}
+        rules = {}
     elif ardupilot:
         rules = _ap_rules(int(sent.command), vehicle_type)
     else:
@@ -205,6 +273,10 @@ def _compare_item(
             if not (_same32(a, b) or abs(a - b) <= tolerance):
                 out.append(diff("altitude (m)", _fmt(a, 7, True), _fmt(b, 7, True)))
             continue
+        if n in (5, 6) and not located and b is not None and is_global_frame(got.frame):
+            # ArduPilot reads an item without a location back with frame 0 (GLOBAL), so its
+            # x and y (DO_GIMBAL_MANAGER_PITCHYAW's flags) arrive as if they were degE7
+            b = float(deg_to_e7(b))
         if _same32(a, b) or _rule_allows(rules.get(n), a, b):
             continue
         out.append(diff(PARAM_NAMES[n].split(" (")[0], _fmt(a, n, False), _fmt(b, n, False)))
@@ -225,10 +297,13 @@ def verify_readback(
     returns them (ArduPilot: home first; it is skipped, since the vehicle keeps its own home).
     Latitude and longitude must match in degE7 exactly, float parameters to float32, frames in
     meaning (INT or not). With ArduPilot, what its storage changes is not a difference
-    (REFERENCES.md section 3): frames of items without a location, autocontinue, a Copter
-    waypoint's hold time in whole seconds and its dropped radii and yaw, a Plane waypoint's
-    dropped hold time and radii clamped to 0-255, altitudes rounded to centimetres, and the
-    parameters it does not store for a few DO commands. With PX4, what it does not store for
+    (AP_Mission's packing, command by command, in :data:`_AP_RULES`): frames of items without
+    a location, autocontinue, a Copter waypoint's hold time in whole seconds and its dropped
+    radii and yaw, a Plane waypoint's dropped hold time and radii clamped to 0-255, a
+    take-off's pitch and a landing's abort altitude in whole units, NAV_LAND's param 4 read
+    back as -1 or 1, NAV_LOITER_TO_ALT's dropped param 1 (heading required) and param 4 read
+    back as 0 or 1, integer gimbal angles, altitudes rounded to centimetres, and the
+    parameters it does not store for the DO commands. With PX4, what it does not store for
     positional items (a waypoint's pass radius, a take-off's pitch) and yaw wrapped to
     -180..180 degrees. Anything else is reported.
     """

@@ -56,6 +56,7 @@ from .mission_protocol import (
 from .readback import verify_readback
 from .transfer_outcome import (
     MissionInputError,
+    MissionInterruptedError,
     MissionState,
     MissionTransferError,
     MissionVerificationError,
@@ -194,10 +195,12 @@ def upload_mission(
     clock = link_clock(link)
     started = clock.monotonic()
     sent_any = False
+    sent_count = 0
 
     def tracking(phase: TransferPhase, done: int, total: int) -> None:
-        nonlocal sent_any
+        nonlocal sent_any, sent_count
         sent_any = sent_any or done > 0
+        sent_count = max(sent_count, done)
         if progress is not None:
             progress(phase, done, total)
 
@@ -212,6 +215,12 @@ def upload_mission(
         )
     except LinkError as error:
         raise MissionTransferError(f"upload failed: {error}", mission_state=failed_state(sent_any)) from error
+    except KeyboardInterrupt as stop:
+        raise MissionInterruptedError(
+            f"upload to {link.url} interrupted (Ctrl-C) after {sent_count} of {len(wire_items)} items "
+            f"were sent",
+            mission_state=failed_state(sent_any),
+        ) from stop
     upload_s = clock.monotonic() - started
     log.info("upload of %d items took %.2f s", len(wire_items), upload_s)
 
@@ -223,6 +232,11 @@ def upload_mission(
             f"the upload completed but reading it back failed: {error}",
             mission_state=MissionState.REPLACED_UNVERIFIED,
         ) from error
+    except KeyboardInterrupt as stop:
+        raise MissionInterruptedError(
+            f"upload to {link.url} interrupted (Ctrl-C) while reading the mission back to verify it",
+            mission_state=MissionState.REPLACED_UNVERIFIED,
+        ) from stop
     verify_s = clock.monotonic() - verify_started
     differences = verify_readback(
         mission.items, received, autopilot, link.vehicle_type, mission_type=mission_type
@@ -296,7 +310,8 @@ def clear_mission(
                 break
         if refused is not None:
             raise MissionTransferError(
-                f"clear on {link.url} refused: {describe_mission_result(refused)}{session.vehicle_said()}",
+                f"clear on {link.url} refused: {describe_mission_result(refused)}"
+                f"{session.vehicle_said(refused)}",
                 mission_state=MissionState.UNCHANGED,
             )
         empty = 1 if has_home_item(link.autopilot, mission_type) else 0

@@ -10,7 +10,7 @@ from enum import StrEnum
 from planner.errors import InputError, MissionValidationError
 from planner.mission import Autopilot, VehicleType
 
-from .errors import TransferError, VerificationError
+from .errors import TransferError, VerificationError, join_sentences
 from .mavlink_items import PARAM_NAMES, MissionType
 from .readback import ItemDifference
 
@@ -150,8 +150,15 @@ class MissionTransferError(TransferError):
     """A transfer failed; ``mission_state`` says what the vehicle now holds."""
 
     def __init__(self, message: str, *, mission_state: MissionState) -> None:
-        super().__init__(f"{message}. {mission_state.sentence}")
+        super().__init__(join_sentences(message, mission_state.sentence))
         self.mission_state = mission_state
+
+
+class MissionInterruptedError(MissionTransferError):
+    """The user stopped a transfer (Ctrl-C); ``mission_state`` says what the vehicle now holds
+    (a real ArduPilot may keep a partial mission). Exit code 130, as any interrupt."""
+
+    exit_code = 130
 
 
 class MissionTooLargeError(MissionTransferError):

@@ -11,8 +11,19 @@
 - Where no line is far enough (few lines left, a narrow block), the plane flies a loop: a
   "light bulb" turn of three arcs of radius r (away from the next line, around, and onto it),
   written as waypoints every :data:`LOOP_STEP_DEG` of arc.
-- Lead-in and lead-out: at least ``r`` of straight flight before the camera-on point, so that
-  the plane is out of its turn and on the line when the photos start.
+- Run-in (the straight approach before the first photo of a line): the autopilot steers onto
+  a line with its L1 guidance, whose cross-track error behaves as a second-order system of
+  natural period P (ArduPlane NAVL1_PERIOD, 17 s by default; PX4 FW_L1_PERIOD, 20 s) and damping
+  0.75: it does not settle within a turn radius but over about a period of flight. The plane
+  leaves its turn within the L1 distance ``L1 = 0.75 P v / pi`` of the line (the guidance's
+  capture), and one period later the error's envelope ``exp(-2 pi 0.75 t / P)`` is below 1 % of
+  it, so the run-in is ``max(v P, 2 r)`` (v the fastest speed flown, r the turn radius): under
+  a metre off for the L1 distance of tens of metres a survey plane starts from. The lead-out
+  after the last photo stays ``r``: the plane needs only to be out of the line before it turns.
+- The first line after take-off: the plane climbs out on the take-off course and then flies to
+  the first line's entry; when the entry lies within the climb-out and the turn that follows it
+  (``climb_out_m + 2 r`` from home), its run-in grows until the entry lies beyond them, so the
+  plane reaches its altitude and has turned before it starts the run-in.
 - Take-off: NAV_TAKEOFF with param1 the minimum pitch (ArduPlane: TKOFF pitch, "Minimum pitch
   (plane)"; PX4: the same for fixed-wing take-off), its position ahead of home on the take-off
   course (PX4 flies toward it; ArduPlane takes off along its heading and ignores it).
@@ -47,6 +58,10 @@ MIN_BANK_DEG = 10.0
 MAX_BANK_DEG = 60.0
 #: The fastest airspeed sfap plans for a survey plane, m/s (camera blur sets a lower one anyway).
 MAX_AIRSPEED_M_S = 40.0
+#: Period of the autopilot's L1 guidance, s: ArduPlane NAVL1_PERIOD and PX4 FW_L1_PERIOD defaults.
+L1_PERIOD_S = {"ardupilot": 17.0, "px4": 20.0}
+#: Damping ratio of the L1 guidance (ArduPlane NAVL1_DAMPING, PX4 FW_L1_DAMPING defaults).
+L1_DAMPING = 0.75
 #: Arc between the waypoints of a loop turn, degrees.
 LOOP_STEP_DEG = 30.0
 
@@ -96,6 +111,9 @@ class FixedWing:
     """How a plane flies a plan: its turn radius and take-off and landing figures."""
 
     radius_m: float
+    #: The fastest speed flown (m/s) and the autopilot's L1 period (s): the run-in.
+    speed_m_s: float
+    l1_period_s: float
     takeoff_pitch_deg: float
     glide_slope_deg: float
     approach_alt_m: float
@@ -104,7 +122,42 @@ class FixedWing:
 
     @property
     def lead_in_m(self) -> float:
+        """The run-in before a line's first photo: one L1 period of flight, at least a U-turn's
+        width (module docstring)."""
+        return max(self.speed_m_s * self.l1_period_s, 2.0 * self.radius_m)
+
+    @property
+    def lead_out_m(self) -> float:
         return self.radius_m
+
+    @property
+    def l1_distance_m(self) -> float:
+        return L1_DAMPING * self.l1_period_s * self.speed_m_s / math.pi
+
+    @property
+    def climb_out_m(self) -> float:
+        """How far the plane flies on its take-off course before it reaches the take-off
+        altitude (climbing at the take-off pitch)."""
+        return self.approach_alt_m / math.tan(math.radians(self.takeoff_pitch_deg))
+
+    def first_lead_in_m(self, home_xy: Point2, start_xy: Point2, heading_deg: float) -> float:
+        """The run-in of the first line after take-off, whose first photo is at ``start_xy``
+        flown on grid bearing ``heading_deg``: at least :attr:`lead_in_m`, and long enough that
+        the entry lies beyond the climb-out and the turn after it (module docstring)."""
+        h = math.radians(heading_deg)
+        back = (-math.sin(h), -math.cos(h))  # from the start toward the entry
+        clear = self.climb_out_m + 2.0 * self.radius_m
+        rx, ry = start_xy[0] - home_xy[0], start_xy[1] - home_xy[1]
+        # the smallest s >= lead_in with |start + s back - home| >= clear
+        b = rx * back[0] + ry * back[1]
+        c = rx * rx + ry * ry - clear * clear
+        disc = b * b - c
+        lead = self.lead_in_m
+        if disc > 0.0:
+            s_in, s_out = -b - math.sqrt(disc), -b + math.sqrt(disc)
+            if s_in < lead < s_out:
+                lead = s_out
+        return lead
 
     @property
     def loiter_radius_m(self) -> float:
@@ -263,6 +316,8 @@ def fixed_wing_for(spec: MissionSpec, speed_m_s: float, true_north_grid_deg: flo
     landing = vehicle.landing_heading_deg
     return FixedWing(
         radius_m=turn_radius_m(fastest, vehicle.bank_limit_deg),
+        speed_m_s=fastest,
+        l1_period_s=L1_PERIOD_S[vehicle.autopilot.value],
         takeoff_pitch_deg=vehicle.takeoff_pitch_deg,
         glide_slope_deg=vehicle.landing_glide_slope_deg,
         approach_alt_m=vehicle.takeoff_alt_m,

@@ -177,9 +177,11 @@ def build_path(
         return float(lat), float(lon)
 
     turnaround_m = survey.turnaround_m
+    lead_out_m: float | None = None  # None: the turnaround; a plane's lead-out is shorter than its run-in
     takeoff_target: tuple[float, float] | None = None
     takeoff_pitch: float | None = None
     if fixed_wing is not None:
+        lead_out_m = max(turnaround_m, fixed_wing.lead_out_m)
         turnaround_m = max(turnaround_m, fixed_wing.lead_in_m)
         first_entry = passes[0].segments[0] if passes and passes[0].segments else None
         aim = home_xy
@@ -225,7 +227,7 @@ def build_path(
         entries = {}
         for k, s in enumerate(segs):
             for direction in (1, -1):
-                geo = _segment_points(s, direction, pp, turnaround_m, router)
+                geo = _segment_points(s, direction, pp, turnaround_m, router, lead_out_m)
                 entries[(k, direction)] = geo["entry"]
         reverse_rows, first_dir = nearest_start(row_list, entries, position)
         if fixed_wing is not None:
@@ -236,8 +238,12 @@ def build_path(
         pass_lines: list[FlightLine] = []
         for k, direction in order:
             seg = dataclasses.replace(segs[k], direction=direction)
-            pts = _segment_points(seg, direction, pp, turnaround_m, router)
+            pts = _segment_points(seg, direction, pp, turnaround_m, router, lead_out_m)
             heading = (pp.direction_deg + (0.0 if direction > 0 else 180.0)) % 360.0
+            if fixed_wing is not None and len(points) == 1:  # the first line: after the climb-out
+                first_lead = fixed_wing.first_lead_in_m(home_xy, pts["start"], heading)
+                if first_lead > turnaround_m:
+                    pts = _segment_points(seg, direction, pp, first_lead, router, lead_out_m)
             where = {"pass_index": pp.index, "line_index": seg.row}
             if fixed_wing is not None and last_heading is not None:
                 turn = wrap180(heading - last_heading)
@@ -339,14 +345,21 @@ def build_path(
 
 
 def _segment_points(
-    seg: Segment, direction: int, pp: PassPlan, turnaround_m: float, router: Router
+    seg: Segment,
+    direction: int,
+    pp: PassPlan,
+    turnaround_m: float,
+    router: Router,
+    lead_out_m: float | None = None,
 ) -> dict[str, tuple[float, float]]:
-    """Lead-in, camera-on, camera-off and lead-out points of a segment flown in ``direction``."""
+    """Lead-in (``turnaround_m``), camera-on, camera-off and lead-out (``lead_out_m``, None:
+    ``turnaround_m``) points of a segment flown in ``direction``."""
     flown = dataclasses.replace(seg, direction=direction)
     start_u, stop_u = flown.camera_on_u()
+    out_m = turnaround_m if lead_out_m is None else lead_out_m
     # A run that continues another of the same line has no lead-in (lead-out) on that side.
     lead_in = 0.0 if (seg.join_lo if direction > 0 else seg.join_hi) else turnaround_m
-    lead_out = 0.0 if (seg.join_hi if direction > 0 else seg.join_lo) else turnaround_m
+    lead_out = 0.0 if (seg.join_hi if direction > 0 else seg.join_lo) else out_m
 
     def xy(u: float) -> tuple[float, float]:
         x, y = from_pass_frame(np.array([u]), np.array([seg.v_m]), pp.direction_deg)

@@ -147,6 +147,7 @@ class Summary:
     warnings: tuple[str, ...] = ()
     terrain: dict[str, object] | None = None  # planner.terrain_follow.TerrainSummary, with a DEM
     corridor: dict[str, object] | None = None  # planner.corridor: width, centre line, line offsets
+    vehicle_parameters: tuple[dict[str, object], ...] = ()  # planner.vehicle_params: what to set
 
     def as_dict(self) -> dict[str, object]:
         out: dict[str, object] = {}

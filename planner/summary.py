@@ -11,6 +11,7 @@ from .geo import LocalFrame
 from .mission import Autopilot
 from .plan import Summary
 from .spec import MissionSpec, VehicleSpec
+from .vehicle_params import required_parameters
 
 if TYPE_CHECKING:
     from .coverage import ViewShares
@@ -104,6 +105,10 @@ def summarize(
         crs=f"EPSG:{frame.epsg}" if frame.epsg else frame.crs.to_string(),
         warnings=warnings,
         terrain=terrain,
+        vehicle_parameters=tuple(
+            r.to_dict()
+            for r in required_parameters(built.mission.items, spec.vehicle.autopilot, spec.vehicle.type)
+        ),
     )
 
 

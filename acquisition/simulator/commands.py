@@ -18,6 +18,7 @@ from planner.mission import Autopilot
 
 if TYPE_CHECKING:
     from .flight import FlightSimulator
+    from .parameters import VehicleParameters
 
 M = mavlink2
 
@@ -27,6 +28,11 @@ class VehicleCommands:
 
     autopilot: Autopilot
     flight: FlightSimulator
+    params: VehicleParameters
+
+    def prearm_failure(self) -> str | None:
+        """Why the vehicle refuses to arm now (a PreArm text), or None."""
+        raise NotImplementedError
 
     def send(self, msg: Any, sim_time_s: float | None = None) -> None:
         raise NotImplementedError
@@ -65,11 +71,12 @@ class VehicleCommands:
         flight = self.flight
         if command == 400:  # MAV_CMD_COMPONENT_ARM_DISARM
             if params[0] >= 0.5:
-                ok, why = flight.arm()
+                refused = None if flight.armed else self.prearm_failure()
+                ok, why = (False, refused) if refused else flight.arm()
             else:
                 ok, why = flight.disarm(force=abs(params[1] - 21196) < 0.5)
             if not ok:
-                self.send_text(3, why)
+                self.send_text(2 if why.startswith("PreArm") else 3, why)  # CRITICAL, as check_failed
             return accepted if ok else failed
         if command == 176:  # MAV_CMD_DO_SET_MODE
             ok = flight.set_mode(int(params[0]), int(params[1]), int(params[2]))
@@ -120,6 +127,20 @@ class VehicleCommands:
 
     def _on_set_mode(self, msg: Any) -> None:
         self.flight.set_mode(int(msg.base_mode), *self.flight.split_custom_mode(msg.custom_mode))
+
+    def _on_param_request_read(self, msg: Any) -> None:
+        answer = self.params.on_request_read(msg)
+        if answer is not None:
+            self.send(answer)
+
+    def _on_param_set(self, msg: Any) -> None:
+        answer = self.params.on_set(msg)
+        if answer is not None:
+            self.send(answer)
+
+    def _on_param_request_list(self, msg: Any) -> None:
+        for answer in self.params.all_messages():
+            self.send(answer)
 
     def _on_request_data_stream(self, msg: Any) -> None:
         # No answer, as ArduPilot: the streams start (or stop), that is all.

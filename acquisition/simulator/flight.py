@@ -10,8 +10,9 @@ their exact times whatever the step size, so a flight is a function of the comma
 
 This module holds the state and the commands (arm, modes, mission start, RTL) and steps time;
 the mission runs as ArduPilot's AP_Mission runs it (:mod:`.mission_execution`). A fixed-wing
-vehicle is flown with the same kinematics (it climbs vertically at take-off and "lands"
-vertically at home: a simplification).
+vehicle flies its waypoints as ArduPlane does (:mod:`.plane`: L1 guidance, bank-limited turns,
+so it settles onto a line over a distance) and climbs out along its heading at the take-off
+pitch; it still "lands" vertically at the end of its approach (a simplification).
 
 Photo decisions use the true position (as the truth of a test), the messages report the noisy
 one (as a real autopilot would). :attr:`FlightSimulator.shots` keeps both for tests.
@@ -33,7 +34,7 @@ from planner.mission import (
 )
 
 from .. import mavlink_messages as mm
-from . import kinematics, mission_execution, modes
+from . import kinematics, mission_execution, modes, plane
 from .kinematics import AIRBORNE_ABOVE_M, GpsNoise, HomeFrame, Leg
 from .modes import Mode
 from .telemetry_streams import TelemetryStreams, periodic_record
@@ -118,6 +119,13 @@ class FlightSimulator:
         self.reached: list[tuple[float, int]] = []
         self.legs: list[Leg] = []
         self.after_legs: str | None = None  # "nav_done", "landed"
+        # a plane's guidance (plane): its tuning, the last update's tick and turn rate, the
+        # waypoint it last reached (the start of its next track; None: from where it is)
+        self.plane_tuning = plane.PlaneTuning()
+        self.plane_tick = -1
+        self.plane_rate_rad_s = 0.0
+        self.plane_bank_rad = 0.0
+        self.plane_last_wp: tuple[float, float] | None = None
         self._out: list[tuple[float, object]] = []  # event messages with their times
         self._out_timed: list[tuple[float, object]] | None = None
         c = self.config

@@ -24,6 +24,8 @@ from pyproj import CRS, Transformer
 from planner.geo import WGS84, LocalFrame
 from planner.mission import HomePosition, VehicleType
 
+from . import plane
+
 if TYPE_CHECKING:
     from .flight import FlightSimulator
 
@@ -38,6 +40,14 @@ class Leg:
     target: tuple[float, float, float] | None
     wait_s: float = 0.0
     forever: bool = False
+    #: Flown as a plane flies it (:mod:`.plane`): L1 guidance along the track from
+    #: ``track_from`` (None: from where the plane is when the leg starts), reached within
+    #: ``accept_m`` or past the finish line.
+    plane: bool = False
+    track_from: tuple[float, float] | None = None
+    accept_m: float = 0.0
+    #: The climb rate of this leg (m/s) instead of the configured one (a plane's climb-out).
+    climb_rate_m_s: float | None = None
 
 
 def leg_duration_s(
@@ -53,6 +63,8 @@ def leg_duration_s(
     dz = target[2] - pos[2]
     horizontal = math.hypot(target[0] - pos[0], target[1] - pos[1])
     vrate = climb_rate_m_s if dz > 0 else descent_rate_m_s
+    if horizontal == 0.0 and dz == 0.0:
+        return 0.0
     return max(horizontal / speed_m_s, abs(dz) / vrate)
 
 
@@ -165,13 +177,16 @@ def advance(sim: FlightSimulator, dt: float) -> None:
             if sim.time_s >= sim.camera.next_capture_s - 1e-12:
                 sim.timed_capture()
             continue
+        if leg.plane:
+            _plane_advance(sim, leg, remaining, cap)
+            continue
         tx, ty, tz = leg.target
         dx, dy, dz = tx - sim.pos[0], ty - sim.pos[1], tz - sim.pos[2]
         need = leg_duration_s(
             sim.pos,
             leg.target,
             speed_m_s=sim.speed_m_s,
-            climb_rate_m_s=sim.config.climb_rate_m_s,
+            climb_rate_m_s=leg.climb_rate_m_s or sim.config.climb_rate_m_s,
             descent_rate_m_s=sim.config.descent_rate_m_s,
         )
         if need <= 1e-12:
@@ -205,3 +220,59 @@ def advance(sim: FlightSimulator, dt: float) -> None:
         if sim.time_s >= sim.camera.next_capture_s - 1e-12:
             sim.timed_capture()
     sim.time_s = max(sim.time_s, end_time)
+
+
+def _plane_advance(sim: FlightSimulator, leg: Leg, remaining: float, cap: float) -> None:
+    """Fly ``leg`` as a plane (:mod:`.plane`) up to the next guidance update, the next photo
+    or ``remaining`` seconds, whichever comes first; at an update, pop the leg if reached."""
+    assert leg.target is not None
+    tuning = sim.plane_tuning
+    tx, ty, tz = leg.target
+    here = (sim.pos[0], sim.pos[1])
+    if leg.track_from is None:
+        leg.track_from = here
+    tick = round(sim.time_s / plane.NAV_PERIOD_S)
+    on_grid = abs(sim.time_s - tick * plane.NAV_PERIOD_S) < 1e-9
+    if on_grid and sim.plane_tick != tick:
+        # the navigation update: is the waypoint reached, then the bank for the next period
+        if math.dist(here, (tx, ty)) <= leg.accept_m or plane.past_finish_line(
+            here, leg.track_from, (tx, ty)
+        ):
+            sim.legs.pop(0)
+            sim.plane_last_wp = (tx, ty)
+            if sim.legs and sim.legs[0].plane and sim.legs[0].track_from is None:
+                sim.legs[0].track_from = (tx, ty)
+            return
+        course = math.radians(sim.heading_deg)
+        accel = plane.lateral_accel_m_s2(tuning, here, course, sim.speed_m_s, leg.track_from, (tx, ty))
+        demand = plane.demanded_bank_rad(tuning, accel)
+        # the bank held over this period: where the roll lag has brought it in one period
+        sim.plane_bank_rad = plane.next_bank_rad(tuning, sim.plane_bank_rad, demand, plane.NAV_PERIOD_S)
+        sim.plane_rate_rad_s = plane.turn_rate_rad_s(sim.plane_bank_rad, sim.speed_m_s)
+        sim.plane_tick = tick
+    next_update = (math.floor(sim.time_s / plane.NAV_PERIOD_S + 1e-9) + 1) * plane.NAV_PERIOD_S
+    step = min(remaining, next_update - sim.time_s, cap if cap > 0 else 0.0)
+    if step <= 0.0:
+        if cap <= 0 and sim.time_s >= sim.camera.next_capture_s - 1e-12:
+            sim.timed_capture()
+        return
+    dz = tz - sim.pos[2]
+    vrate = (leg.climb_rate_m_s or sim.config.climb_rate_m_s) if dz > 0 else sim.config.descent_rate_m_s
+    vz = math.copysign(min(vrate, abs(dz) / step), dz) if dz != 0.0 else 0.0
+    course = math.radians(sim.heading_deg)
+    new_xy, new_course = plane.arc(here, course, sim.plane_rate_rad_s, sim.speed_m_s, step)
+    t0, z0 = sim.time_s, sim.pos[2]
+    for s in sim.distance_trigger(here, new_xy):
+        sim.time_s = t0 + s * step
+        at, _ = plane.arc(here, course, sim.plane_rate_rad_s, sim.speed_m_s, s * step)
+        sim.pos = [at[0], at[1], z0 + vz * step * s]
+        sim.take_photo()
+    sim.pos = [new_xy[0], new_xy[1], z0 + vz * step]
+    sim.heading_deg = math.degrees(new_course) % 360.0
+    v = sim.speed_m_s
+    sim.vel = (v * math.sin(new_course), v * math.cos(new_course), vz)
+    sim.time_s = t0 + step
+    if sim.pos[2] > AIRBORNE_ABOVE_M:
+        sim.has_flown = True
+    if sim.time_s >= sim.camera.next_capture_s - 1e-12:
+        sim.timed_capture()

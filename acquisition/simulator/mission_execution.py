@@ -10,11 +10,13 @@ for these commands. A multirotor holds a waypoint's param1 seconds; a plane igno
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING
 
 from planner.mission import MavCmd, MavFrame, MissionItem, VehicleType
 
 from .. import mavlink_messages as mm
+from . import plane
 from .kinematics import Leg
 from .modes import Mode
 from .triggering import Gimbal
@@ -99,7 +101,11 @@ def start_nav(sim: FlightSimulator, index: int) -> None:
     sim.legs = []
     sim.after_legs = "nav_done"
     copter = sim.vehicle_type is not VehicleType.FIXED_WING
-    if cmd == MavCmd.NAV_TAKEOFF:
+    if cmd == MavCmd.NAV_TAKEOFF and not copter:
+        sim.legs = [_plane_climb_out(sim, item)]
+        sim.plane_last_wp = None  # the first waypoint is flown from where the climb ends
+        sim.has_flown = True
+    elif cmd == MavCmd.NAV_TAKEOFF:
         _, _, z = item_xyz(sim, item)
         sim.legs = [Leg((sim.pos[0], sim.pos[1], max(z, sim.pos[2])))]
         sim.has_flown = True
@@ -107,13 +113,19 @@ def start_nav(sim: FlightSimulator, index: int) -> None:
         plan_rtl(sim, from_mission=True)
     elif cmd in (MavCmd.NAV_LAND, MavCmd.NAV_VTOL_LAND):
         x, y, _ = item_xyz(sim, item)
-        sim.legs = [Leg((x, y, sim.pos[2])), Leg((x, y, 0.0))]
+        if copter:
+            sim.legs = [Leg((x, y, sim.pos[2])), Leg((x, y, 0.0))]
+        else:  # a plane flies its approach to the land point, then (simplified) sinks there
+            sim.legs = [Leg((x, y, sim.pos[2]), plane=True, track_from=sim.plane_last_wp), Leg((x, y, 0.0))]
         sim.after_legs = "landed"
     else:
         target = item_xyz(sim, item)
         if not sim.airborne and target[2] > 0:
             sim.has_flown = True
-        sim.legs = [Leg(target)]
+        if copter:
+            sim.legs = [Leg(target)]
+        else:
+            sim.legs = [_plane_leg(sim, index, target)]
         hold = 0.0
         waypoint = cmd in (MavCmd.NAV_WAYPOINT, MavCmd.NAV_SPLINE_WAYPOINT)
         if (waypoint and copter) or cmd == MavCmd.NAV_LOITER_TIME:
@@ -123,6 +135,56 @@ def start_nav(sim: FlightSimulator, index: int) -> None:
         elif hold > 0:
             sim.legs.append(Leg(None, wait_s=hold))
     sim.queue_mission_current()
+
+
+def _plane_climb_out(sim: FlightSimulator, item: MissionItem) -> Leg:
+    """ArduPlane's take-off: straight ahead at the minimum pitch (param 1; 15 degrees if 0)
+    until the altitude, along the heading the plane is launched on (toward the item's position
+    when it has one, as the crew points the plane down the planned take-off course)."""
+    x, y, z = item_xyz(sim, item)
+    if math.hypot(x - sim.pos[0], y - sim.pos[1]) > 1.0:
+        sim.heading_deg = math.degrees(math.atan2(x - sim.pos[0], y - sim.pos[1])) % 360.0
+    pitch = math.radians(float(item.param1 or 0.0) or 15.0)
+    climb = max(z - sim.pos[2], 0.0)
+    run = climb / math.tan(pitch)
+    h = math.radians(sim.heading_deg)
+    target = (sim.pos[0] + run * math.sin(h), sim.pos[1] + run * math.cos(h), max(z, sim.pos[2]))
+    return Leg(target, climb_rate_m_s=sim.speed_m_s * math.tan(pitch))
+
+
+def _next_position(sim: FlightSimulator, index: int) -> tuple[float, float] | None:
+    """Where the NAV command after ``index`` goes (None: no next position), following DO_JUMP
+    as AP_Mission::get_next_nav_cmd does."""
+    items = sim.mission.items
+    i, seen = index + 1, 0
+    while 0 <= i < len(items) and seen < len(items):
+        seen += 1
+        item = items[i]
+        if item.command == MavCmd.DO_JUMP:
+            i = int(item.param1 or 0)
+            continue
+        if is_nav(item.command):
+            if item.command == MavCmd.NAV_RETURN_TO_LAUNCH:
+                return (0.0, 0.0)
+            if item.lat_deg == 0.0 and item.lon_deg == 0.0:
+                return None
+            x, y, _ = item_xyz(sim, item)
+            return x, y
+        i += 1
+    return None
+
+
+def _plane_leg(sim: FlightSimulator, index: int, target: tuple[float, float, float]) -> Leg:
+    """A plane's leg to ``target``: tracked from the last waypoint reached, counted reached
+    within the turn distance of the coming turn (Plane::verify_nav_wp)."""
+    start = sim.plane_last_wp or (sim.pos[0], sim.pos[1])
+    accept = 0.0
+    nxt = _next_position(sim, index)
+    here = (target[0], target[1])
+    if nxt is not None and math.dist(here, nxt) > 1e-3 and math.dist(start, here) > 1e-3:
+        angle = plane.turn_angle_deg(start, here, nxt)
+        accept = sim.plane_tuning.turn_distance_m(sim.speed_m_s, angle)
+    return Leg(target, plane=True, track_from=sim.plane_last_wp, accept_m=accept)
 
 
 def nav_done(sim: FlightSimulator) -> None:

@@ -40,6 +40,12 @@ line. What it does, and which real behaviour each part copies:
   AUTOPILOT_VERSION (148) or HOME_POSITION (242), SET_MESSAGE_INTERVAL (511; UNSUPPORTED for
   a message it cannot send), answered with COMMAND_ACK; REQUEST_DATA_STREAM (no answer, as
   ArduPilot).
+- Parameters (:mod:`.parameters`): PARAM_REQUEST_READ, PARAM_SET and PARAM_REQUEST_LIST
+  answered with PARAM_VALUE, with ArduPilot SITL's defaults for the parameters sfap's
+  missions depend on (RTL_AUTOLAND 0 on a plane, CAM1_TYPE 1); as ArduPlane, it refuses to
+  arm (COMMAND_ACK FAILED, STATUSTEXT "PreArm: DO_LAND_START set and RTL_AUTOLAND disabled",
+  repeated every 30 s while disarmed) a mission with DO_LAND_START while RTL_AUTOLAND is 0;
+  ``auto_start`` tries again once a second.
 - Telemetry: as ArduPilot on a serial port, only HEARTBEAT and event messages until a ground
   station asks for streams (``streams_on_request``, the ArduPilot flavour's default).
 - Optionally the camera's card (:class:`.camera.FrameCard`): a small JPEG per photo, stamped
@@ -87,6 +93,7 @@ from .commands import VehicleCommands
 from .faults import FaultConfig, FaultStats, FaultyPipe
 from .flight import FlightConfig, FlightSimulator
 from .missions import VehicleMissions
+from .parameters import VehicleParameters
 from .transport import Transport, parse_listen_url
 
 log = logging.getLogger(__name__)
@@ -207,6 +214,9 @@ class SimulatedVehicle(VehicleCommands):
         self.follow_mission_home = follow_mission_home
         self.frames = frames
         self.missions = VehicleMissions(self)
+        self.params = VehicleParameters(self.autopilot, self.vehicle_type)
+        self._prearm_said_s: float | None = None  # flight time of the last PreArm text
+        self._next_start_try_s = 0.0
         self._transport: Transport | None = None
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()
@@ -403,9 +413,12 @@ class SimulatedVehicle(VehicleCommands):
                                 "simulated vehicle: mission stored; waiting for a ground station to "
                                 "ask for telemetry (sfap monitor) before starting"
                             )
-                    else:
-                        self._auto_start = False
-                        self._start_by_itself()
+                    elif self.flight.time_s >= self._next_start_try_s:
+                        # a crew tries again (once a second) while a pre-arm check refuses
+                        self._next_start_try_s = self.flight.time_s + 1.0
+                        self._auto_start = not self._start_by_itself()
+                if self.flight.gps_has_fix:
+                    self._repeat_prearm()
                 for when_s, msg in self.flight.drain_events():
                     self.send(msg, when_s)
                 for when_s, msg in self.flight.step_timed(dt_wall * self.speedup):
@@ -433,7 +446,34 @@ class SimulatedVehicle(VehicleCommands):
                 timeout = min(timeout, max(due - now, 0.0))
         return timeout
 
-    def _start_by_itself(self) -> None:
+    def prearm_failure(self) -> str | None:
+        """Why the vehicle refuses to arm now (ArduPilot's PreArm text), or None."""
+        if self.autopilot is not Autopilot.ARDUPILOT:
+            return None
+        return self.params.prearm_failure(w.command for w in self.missions.stored[MissionType.MISSION])
+
+    def _repeat_prearm(self) -> None:
+        """While disarmed and failing a pre-arm check, say why every 30 s of flight time, as
+        ArduPilot's AP_Arming::update does (PREARM_DISPLAY_PERIOD 30)."""
+        if self.flight.armed or self.autopilot is not Autopilot.ARDUPILOT:
+            return
+        now = self.flight.time_s
+        if self._prearm_said_s is not None and now - self._prearm_said_s < 30.0:
+            return
+        why = self.prearm_failure()
+        if why is not None:
+            self._prearm_said_s = now
+            self.send_text(2, why)
+
+    def _start_by_itself(self) -> bool:
+        """Arm and start the mission; False when the vehicle refuses (it is tried again)."""
+        refused = self.prearm_failure()
+        if refused is not None:
+            if self._prearm_said_s is None or self.flight.time_s - self._prearm_said_s >= 30.0:
+                self._prearm_said_s = self.flight.time_s
+                self.send_text(2, refused)
+                log.warning("simulated vehicle: refuses to arm: %s", refused)
+            return False
         ok, why = self.flight.arm()
         if ok:
             ok, why = self.flight.start_mission()
@@ -443,6 +483,7 @@ class SimulatedVehicle(VehicleCommands):
         else:
             self.send_text(3, why)
             log.warning("simulated vehicle: could not start the mission: %s", why)
+        return True
 
     def _receive_bytes(self, peer: object, data: bytes) -> None:
         parser = self._parsers.get(peer)

@@ -145,6 +145,8 @@ def _present(run: PlanRun, out_dir: Path, as_json: bool) -> None:
             assert key is not None and fmt is not None
             value = fmt.format(summary[key])
         rows.append((label, value))
+    for param in plan.summary.vehicle_parameters:  # planner.vehicle_params: the vehicle must have them
+        rows.append((f"vehicle parameter {param['name']}", f"{param['needed']} (sfap upload checks it)"))
     terrain = plan.summary.terrain
     if terrain is not None:
         mode = "follows the ground" if terrain["follow"] else "constant above home"

@@ -6,18 +6,32 @@ Also home of the link options that ``upload``, ``download`` and ``clear`` share 
 from __future__ import annotations
 
 import contextlib
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any, TypeVar
 
 import click
 
-from acquisition.errors import LinkError
+from acquisition.errors import LinkError, join_sentences
 from acquisition.link import Link
 from acquisition.mission_protocol import DEFAULT_RETRIES, DEFAULT_TIMEOUT_S, TransferPhase
 from acquisition.signing import load_signing_key
 from acquisition.transfer import upload_mission
-from acquisition.transfer_outcome import MissionInputError, MissionVerificationError
+from acquisition.transfer_outcome import (
+    MissionInputError,
+    MissionInterruptedError,
+    MissionState,
+    MissionVerificationError,
+    UploadResult,
+)
+from acquisition.vehicle_params import (
+    DEFAULT_PARAM_RETRIES,
+    DEFAULT_PARAM_TIMEOUT_S,
+    ParamStatus,
+    VehicleParameterError,
+    check_parameters,
+    required_parameters,
+)
 from planner.errors import MissionFileError, MissionValidationError
 from planner.mission import validate_mission
 
@@ -77,8 +91,15 @@ def open_link(
     except LinkError as error:
         if nothing_sent_note:
             # the same kind of error (a bad URL or key file stays bad usage), with the note
-            raise type(error)(f"{error}. {nothing_sent_note}") from error
+            raise type(error)(join_sentences(str(error), nothing_sent_note)) from error
         raise
+    except KeyboardInterrupt as stop:
+        if not nothing_sent_note:
+            raise
+        raise MissionInterruptedError(
+            join_sentences(f"interrupted (Ctrl-C) while connecting to {url}", nothing_sent_note),
+            mission_state=MissionState.UNCHANGED,
+        ) from stop
 
 
 class ProgressBars:
@@ -140,6 +161,12 @@ def progress_bars(enabled: bool = True) -> Iterator[ProgressBars]:
     is_flag=True,
     help="Send a mission planned for the other autopilot (ArduPilot/PX4) as it is (default: refuse).",
 )
+@click.option(
+    "--set-params",
+    is_flag=True,
+    help="Set the vehicle parameters the mission needs to the value sfap names (RTL_AUTOLAND 2 "
+    "for a plane's landing sequence) and read them back. Default: read them and name what to set.",
+)
 @json_option
 def command(
     mission_file: Path,
@@ -152,6 +179,7 @@ def command(
     max_alt_rel_home_m: float | None,
     max_home_distance_m: float,
     allow_other_autopilot: bool,
+    set_params: bool,
     as_json: bool,
 ) -> None:
     """Upload MISSION_FILE (.plan or .waypoints) to a vehicle, read it back and verify it.
@@ -162,6 +190,11 @@ def command(
     once with the excess (exit 1); a mission that fails validation, or was planned for the other
     autopilot, is not sent (exit 2). Warns when the first waypoint is far from the vehicle's home.
 
+    Then it reads the vehicle parameters the mission needs (a plane's landing sequence needs
+    RTL_AUTOLAND 1 or 2 on ArduPlane, a camera trigger CAM1_TYPE not 0) and names what to set
+    (exit 1 while one is wrong); with --set-params it sets them and reads them back. Ctrl-C
+    says what the vehicle then holds (exit 130).
+
     Example: sfap upload out/gully/mission.plan --connect serial:///dev/ttyUSB0:57600
     """
     nothing_sent = "Nothing was sent: the vehicle's mission is unchanged."
@@ -170,7 +203,7 @@ def command(
     try:
         mission = read_mission(mission_file)
     except MissionFileError as error:
-        raise MissionFileError(f"{error}. {nothing_sent}") from error
+        raise MissionFileError(join_sentences(str(error), nothing_sent)) from error
     try:
         validate_mission(mission, max_alt_rel_home_m=max_alt_rel_home_m)
     except MissionValidationError as error:
@@ -185,7 +218,13 @@ def command(
         ) as link,
         progress_bars() as bars,
     ):
-        far = _far_from_home(link, mission, max_home_distance_m)
+        try:
+            far = _far_from_home(link, mission, max_home_distance_m)
+        except KeyboardInterrupt as stop:
+            raise MissionInterruptedError(
+                f"upload to {link.url} interrupted (Ctrl-C) before any item was sent",
+                mission_state=MissionState.UNCHANGED,
+            ) from stop
         try:
             result = upload_mission(
                 link,
@@ -201,9 +240,47 @@ def command(
             if as_json:
                 echo_json(error.result.to_dict())
             raise
+        requirements = required_parameters(
+            mission.items, result.autopilot, result.vehicle_type or mission.vehicle_type
+        )
+        try:
+            statuses = check_parameters(
+                link,
+                requirements,
+                apply=set_params,
+                timeout_s=min(timeout_s, DEFAULT_PARAM_TIMEOUT_S),
+                retries=min(retries, DEFAULT_PARAM_RETRIES),
+            )
+        except KeyboardInterrupt as stop:
+            raise MissionInterruptedError(
+                "interrupted (Ctrl-C) while checking the vehicle's parameters",
+                mission_state=MissionState.REPLACED_VERIFIED,
+            ) from stop
+    wrong = [status for status in statuses if status.value is not None and not status.ok]
+    for status in statuses:
+        if status.value is None:
+            click.echo(f"warning: {status.describe()}", err=True)
     if as_json:
-        echo_json({**result.to_dict(), "first_waypoint_from_home_m": far})
-        return
+        echo_json(
+            {
+                **result.to_dict(),
+                "first_waypoint_from_home_m": far,
+                "parameters": [status.to_dict() for status in statuses],
+            }
+        )
+    else:
+        _present(mission_file, result, statuses)
+    if wrong:
+        raise VehicleParameterError(
+            join_sentences(
+                "the mission was uploaded and verified, but the vehicle will not fly it with its "
+                "parameters as they are",
+                *(status.describe() for status in wrong),
+            )
+        )
+
+
+def _present(mission_file: Path, result: UploadResult, statuses: Sequence[ParamStatus]) -> None:
     rows = [
         ("file", str(mission_file)),
         ("vehicle", f"{result.autopilot.value} on {result.url}"),
@@ -216,6 +293,7 @@ def command(
         ("state", result.state.value),
     ]
     rows += [("note", note) for note in result.notes]
+    rows += [("parameter", status.describe()) for status in statuses]
     echo_table(rows, title="Mission uploaded and verified")
 
 

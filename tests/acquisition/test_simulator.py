@@ -953,10 +953,20 @@ def test_fixed_wing_ardupilot_mount_status() -> None:
     assert mounts and mounts[-1].pointing_a == -8000
     hb = sim.heartbeat_message()
     assert hb.type == 1 and hb.autopilot == 3  # type: ignore[attr-defined]
-    # Plane ignores the hold: reached at arrival
-    reached = dict((seq, t) for t, seq in sim.reached)
-    line1_end_arrival = sim.shots[10].time_s + 10.0 / 8.0  # 11th photo at 300 m of 310
-    assert reached[6] == pytest.approx(line1_end_arrival, abs=1e-6)
+    # Plane ignores the hold: the same mission without holds reaches every waypoint at the
+    # same times (a multirotor would wait 5 s at each)
+    again = FlightSimulator(autopilot=Autopilot.ARDUPILOT, vehicle_type=VehicleType.FIXED_WING, home=HOME)
+    no_hold, _ = two_line_survey(again, 30.0, 310.0, 60.0, hold_s=0.0)
+    no_hold.insert(2, MissionItem.gimbal_pitch_yaw(-80.0, 0.0))
+    assert [i.param1 for i in no_hold] != [i.param1 for i in items]
+    again.set_mission(no_hold)
+    again.step(2.0)
+    assert again.arm()[0] and again.set_mode(1, 10)
+    while not again.has_landed_after_flight and again.time_s < 1000:
+        again.step(1.0)
+    assert len(sim.reached) >= 5
+    assert [s for _, s in again.reached] == [s for _, s in sim.reached]
+    assert [t for t, _ in again.reached] == pytest.approx([t for t, _ in sim.reached], abs=1e-9)
 
 
 # --- flight through the server, with a tlog -----------------------------------------------------

@@ -3,19 +3,25 @@ simulated vehicle: exit codes, what the user reads, and the files written."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
+import os
+import signal
 import socket
+import threading
+import time
 from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
 
+from acquisition.readback import verify_readback
 from acquisition.simulator.faults import FaultConfig
 from acquisition.simulator.server import SimulatedVehicle
 from planner.formats import read_mission
 from planner.formats.qgc_plan import write_plan
 from planner.formats.waypoints import write_waypoints
-from planner.mission import Autopilot, HomePosition, MavCmd, MavFrame, Mission, MissionItem
+from planner.mission import Autopilot, HomePosition, MavCmd, MavFrame, Mission, MissionItem, VehicleType
 from sfap.cli import cli
 
 HOME = HomePosition(lat_deg=41.6488, lon_deg=-0.8891, alt_amsl_m=210.0)
@@ -255,3 +261,107 @@ def test_missing_signing_key_file_is_bad_usage(tmp_path: Path) -> None:
         "upload", str(path), "--connect", "tcp://127.0.0.1:9", "--signing-key", str(tmp_path / "nokey")
     )
     assert code == 2 and "cannot read the signing key file" in err
+
+
+def plane_landing_mission() -> Mission:
+    items = [
+        MissionItem.takeoff(HOME.lat_deg + 0.001, HOME.lon_deg, 40.0),
+        MissionItem.cam_trigger_distance(30.0),
+        MissionItem.waypoint(HOME.lat_deg + 0.002, HOME.lon_deg + 0.002, 80.0),
+        MissionItem.cam_trigger_distance(0.0, trigger_now=False),
+        MissionItem(command=MavCmd.DO_LAND_START, frame=MavFrame.MISSION),
+        MissionItem(
+            command=MavCmd.NAV_LOITER_TO_ALT,
+            param1=1.0,
+            param2=55.0,
+            param4=1.0,
+            param5=HOME.lat_deg - 0.003,
+            param6=HOME.lon_deg,
+            param7=40.0,
+        ),
+        MissionItem(command=MavCmd.NAV_LAND, param5=HOME.lat_deg, param6=HOME.lon_deg, param7=0.0),
+    ]
+    return Mission(items=tuple(items), home=HOME, vehicle_type=VehicleType.FIXED_WING)
+
+
+def test_plane_landing_names_rtl_autoland_and_sets_it_only_with_set_params(tmp_path: Path) -> None:
+    path = write_plan(plane_landing_mission(), tmp_path / "plane.plan")
+    with sim(vehicle_type=VehicleType.FIXED_WING) as vehicle:
+        code, out, err = run("upload", str(path), "--connect", vehicle.url_for_client, *FAST)
+        untouched = list(vehicle.params.sets)
+        refused = vehicle.prearm_failure()
+        code_set, out_set, err_set = run(
+            "upload", str(path), "--connect", vehicle.url_for_client, "--set-params", "--json", *FAST
+        )
+        allowed = vehicle.prearm_failure()
+    # the upload itself verifies (NAV_LOITER_TO_ALT's param 1, NAV_LAND's param 4)
+    assert code == 1 and "replaced and verified" in out, err
+    assert "RTL_AUTOLAND is 0, needs 1 or 2" in err and "--set-params" in err
+    assert "uploaded and verified, but the vehicle will not fly it" in err and "Traceback" not in err
+    assert untouched == [] and refused is not None and refused.startswith("PreArm: DO_LAND_START")
+    assert code_set == 0, err_set
+    data = json.loads(out_set)
+    assert data["verified"] is True
+    assert [(p["name"], p["was"], p["value"], p["ok"]) for p in data["parameters"]] == [
+        ("RTL_AUTOLAND", 0.0, 2.0, True),
+        ("CAM1_TYPE", None, 1.0, True),
+    ]
+    assert allowed is None
+
+
+def test_upload_refused_as_invalid_after_a_boot_refusal_quotes_no_boot_message(tmp_path: Path) -> None:
+    """Issue 24: the INVALID refusal quoted "Only 0 items are supported", which answered the
+    NO_SPACE refusal just after boot."""
+    path = write_plan(mission(20), tmp_path / "m.plan")
+    with sim(boot_delay_s=0.3, faults=FaultConfig(refuse="invalid")) as vehicle:
+        code, _, err = run("upload", str(path), "--connect", vehicle.url_for_client, *FAST)
+    assert code == 1
+    assert "invalid (MAV_MISSION_INVALID)" in err
+    assert "Only 0 items" not in err and "NO_SPACE" not in err.split("failed:")[1]
+    assert "PARTIAL" in err
+
+
+def test_ctrl_c_mid_upload_says_what_the_vehicle_holds(tmp_path: Path) -> None:
+    """Issue 24: Ctrl-C printed only "interrupted". A real SIGINT, mid-way through an upload
+    over a slow radio (4800 baud)."""
+    if signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
+        pytest.skip("SIGINT is not Python's KeyboardInterrupt here")
+    path = write_plan(mission(120), tmp_path / "m.plan")
+    old = [dataclasses.replace(item, param7=item.param7 + 5.0) for item in mission(12).items]
+    with sim(link_baud=4800) as vehicle:
+        vehicle.load_mission(old)
+
+        def interrupt_mid_upload() -> None:
+            deadline = time.monotonic() + 20
+            while vehicle.received_counts.get("MISSION_ITEM_INT", 0) < 10 and time.monotonic() < deadline:
+                time.sleep(0.01)
+            os.kill(os.getpid(), signal.SIGINT)
+
+        thread = threading.Thread(target=interrupt_mid_upload, daemon=True)
+        thread.start()
+        code, _, err = run("upload", str(path), "--connect", vehicle.url_for_client, *FAST)
+        thread.join(timeout=5)
+        stored = vehicle.stored_mission()
+    assert code == 130
+    assert "interrupted (Ctrl-C) after" in err and "of 121 items were sent" in err
+    assert "PARTIAL" in err and "sfap clear" in err and "Traceback" not in err
+    # ArduPilot wrote the new items as they came: the vehicle holds neither mission whole
+    assert verify_readback(old, stored, Autopilot.ARDUPILOT, None) != []
+    assert verify_readback(mission(120).items, stored, Autopilot.ARDUPILOT, None) != []
+
+
+def test_ctrl_c_while_connecting_says_nothing_was_sent(tmp_path: Path) -> None:
+    if signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
+        pytest.skip("SIGINT is not Python's KeyboardInterrupt here")
+    path = write_plan(mission(), tmp_path / "m.plan")
+    with socket.socket() as silent:  # a TCP peer that never says a word
+        silent.bind(("127.0.0.1", 0))
+        silent.listen(1)
+        port = silent.getsockname()[1]
+        timer = threading.Timer(1.0, lambda: os.kill(os.getpid(), signal.SIGINT))
+        timer.start()
+        code, _, err = run("upload", str(path), "--connect", f"tcp://127.0.0.1:{port}", *FAST)
+        timer.join()
+    assert code == 130
+    assert f"interrupted (Ctrl-C) while connecting to tcp://127.0.0.1:{port}" in err
+    assert err.count("mission is unchanged") == 1 and ".." not in err and "Traceback" not in err

@@ -151,6 +151,8 @@ def test_lane_skipping_when_the_lines_are_closer_than_the_turn() -> None:
 
     plane = FixedWing(
         radius_m=45.0,
+        speed_m_s=16.0,
+        l1_period_s=17.0,
         takeoff_pitch_deg=12,
         glide_slope_deg=6,
         approach_alt_m=40,
@@ -166,6 +168,43 @@ def test_lane_skipping_when_the_lines_are_closer_than_the_turn() -> None:
     # and lines far enough apart are flown in order, back and forth
     wide = plane.line_order(rows, [100.0 * k for k in range(10)], (False, 1))
     assert [k for k, _ in wide] == list(range(10))
+
+
+@pytest.mark.parametrize(("autopilot", "period_s"), [("ardupilot", 17.0), ("px4", 20.0)])
+def test_the_run_in_is_one_l1_period_of_flight(tmp_path: Path, autopilot: str, period_s: float) -> None:
+    """Every line's run-in (entry to first photo) is at least the distance flown in one period
+    of the autopilot's L1 guidance (ArduPlane NAVL1_PERIOD 17 s, PX4 FW_L1_PERIOD 20 s, their
+    documented defaults): the cross-track error's envelope exp(-2 pi 0.75 t / P) is below 1 % by
+    then. The lead-out stays the turn radius (or the spec's turnaround)."""
+    spec = plane_spec(tmp_path, vehicle={"autopilot": autopilot})
+    plan = plan_polygons(spec, [lonlat_polygon([(0, 0), (600, 0), (600, 400), (0, 400)])], [])
+    assert math.exp(-2 * math.pi * 0.75) < 0.01
+    radius = 16.0**2 / (G_M_S2 * math.tan(math.radians(30.0)))
+    lines = [line for p in plan.passes for line in p.lines]
+    assert len(lines) > 5
+    for line in lines:
+        assert math.dist(line.entry_xy_m, line.start_xy_m) >= 16.0 * period_s - 1e-6
+        assert math.dist(line.end_xy_m, line.exit_xy_m) == pytest.approx(radius, rel=1e-6)
+        # the run-in lies on the line
+        ex, ey = line.entry_xy_m
+        (sx, sy), (tx, ty) = line.start_xy_m, line.end_xy_m
+        assert abs((ex - sx) * (ty - sy) - (ey - sy) * (tx - sx)) / math.dist((sx, sy), (tx, ty)) < 1e-6
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(hx=st.floats(-700.0, 1300.0), hy=st.floats(-700.0, 1100.0))
+def test_the_first_line_starts_beyond_the_climb_out(tmp_path: Path, hx: float, hy: float) -> None:
+    """Wherever home is, the first line's entry lies beyond the climb-out (take-off altitude /
+    tan(take-off pitch)) and a U-turn's width (2 r) from home, and its run-in is at least the
+    other lines'."""
+    home = (LAT0 + hy / M_PER_DEG_LAT, LON0 + hx / M_PER_DEG_LON)
+    spec = plane_spec(tmp_path, vehicle={"home": list(home), "takeoff_pitch_deg": 12, "takeoff_alt_m": 40})
+    plan = plan_polygons(spec, [lonlat_polygon([(0, 0), (600, 0), (600, 400), (0, 400)])], [])
+    first = plan.passes[0].lines[0]
+    radius = 16.0**2 / (G_M_S2 * math.tan(math.radians(30.0)))
+    climb_out = 40.0 / math.tan(math.radians(12.0))
+    assert math.dist(plan.home_xy_m, first.entry_xy_m) >= climb_out + 2 * radius - 1e-3
+    assert math.dist(first.entry_xy_m, first.start_xy_m) >= 16.0 * 17.0 - 1e-6
 
 
 def test_items_as_arduplane_reads_them(tmp_path: Path) -> None:
