@@ -25,6 +25,20 @@ class FiniteFloatRange(click.FloatRange):
         return super().convert(number, param, ctx)
 
 
+class FiniteFloat(click.types.FloatParamType):
+    """click's float refusing NaN and infinities (``float("nan")`` parses, and every comparison with
+    it is false, so a check of the value downstream would let it through)."""
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        number = super().convert(value, param, ctx)
+        if number != number or number in (float("inf"), float("-inf")):
+            self.fail(f"{value} is not a finite number", param, ctx)
+        return number
+
+
+#: The type of every float option without bounds.
+FINITE_FLOAT = FiniteFloat()
+
 F = TypeVar("F", bound=Callable[..., Any])
 
 json_option = click.option(

@@ -21,7 +21,15 @@ from processing.image_tags import CameraConfidence, camera_option
 from processing.pixel_match import DEFAULT_MATCH_SIZE_PX, PixelOptions
 from processing.verdict import Thresholds
 
-from ..common import dumps_json, echo_table, json_option, overwrite_option, progress
+from ..common import (
+    FINITE_FLOAT,
+    FiniteFloatRange,
+    dumps_json,
+    echo_table,
+    json_option,
+    overwrite_option,
+    progress,
+)
 
 _THRESHOLD_KEYS = tuple(f.name for f in dataclasses.fields(Thresholds))
 
@@ -76,13 +84,13 @@ def _thresholds(values: tuple[str, ...]) -> Thresholds:
 )
 @click.option(
     "--ground-elevation-m",
-    type=float,
+    type=FINITE_FLOAT,
     default=None,
     help="Flat ground at this elevation, metres above mean sea level.",
 )
 @click.option(
     "--takeoff-elevation-m",
-    type=float,
+    type=FINITE_FLOAT,
     default=None,
     help="Elevation of the take-off point, metres AMSL (for altitudes relative to home "
     "with --dem or --ground-elevation-m; a plan folder records its own).",
@@ -99,7 +107,7 @@ def _thresholds(values: tuple[str, ...]) -> Thresholds:
 )
 @click.option(
     "--cell-m",
-    type=click.FloatRange(min=MIN_CELL_M, max=MAX_CELL_M),
+    type=FiniteFloatRange(min=MIN_CELL_M, max=MAX_CELL_M),
     default=None,
     help=f"Raster cell size, metres, {MIN_CELL_M:g}-{MAX_CELL_M:g} (default: 1/50 of a frame's short side, "
     "rounded).",

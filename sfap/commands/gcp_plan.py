@@ -9,7 +9,7 @@ import click
 from planner.gcp_layout import GcpOptions
 from planner.gcp_outputs import plan_gcp_folder
 
-from ..common import dumps_json, echo_table, json_option, overwrite_option
+from ..common import FINITE_FLOAT, dumps_json, echo_table, json_option, overwrite_option
 
 
 @click.command("gcp-plan")
@@ -28,14 +28,22 @@ from ..common import dumps_json, echo_table, json_option, overwrite_option
     "--min-frames", type=int, default=5, show_default=True, help="Planned frames that must see each point."
 )
 @click.option(
-    "--clearance-m", type=float, default=5.0, show_default=True, help="Distance kept from exclusions, m."
+    "--clearance-m",
+    type=FINITE_FLOAT,
+    default=5.0,
+    show_default=True,
+    help="Distance kept from exclusions, m.",
 )
 @click.option(
-    "--edge-margin-m", type=float, default=5.0, show_default=True, help="Distance inside the area's edge, m."
+    "--edge-margin-m",
+    type=FINITE_FLOAT,
+    default=5.0,
+    show_default=True,
+    help="Distance inside the area's edge, m.",
 )
 @click.option(
     "--min-separation-m",
-    type=float,
+    type=FINITE_FLOAT,
     default=30.0,
     show_default=True,
     help="Least distance between points, m.",

@@ -20,7 +20,7 @@ from acquisition.sync_points import SyncPoint, parse_sync_position, parse_sync_t
 from planner.errors import InputError
 from planner.outputs import StagedOutputDir
 
-from ..common import echo_table, json_option, overwrite_option, progress, warnings_once
+from ..common import FINITE_FLOAT, echo_table, json_option, overwrite_option, progress, warnings_once
 
 if TYPE_CHECKING:
     from acquisition.geotag_results import GeotagResult
@@ -126,7 +126,7 @@ def _card_ahead(
 )
 @click.option(
     "--offset-s",
-    type=float,
+    type=FINITE_FLOAT,
     default=None,
     callback=_finite,
     help="Camera clock minus UTC, seconds (time zone included). Default: found by matching "
@@ -156,7 +156,7 @@ def _card_ahead(
 )
 @click.option(
     "--tolerance-s",
-    type=float,
+    type=FINITE_FLOAT,
     default=None,
     callback=_seconds_within(60.0),
     help="Largest capture-time residual of a frame/event pair, seconds. Default: 35 percent of the "
@@ -164,7 +164,7 @@ def _card_ahead(
 )
 @click.option(
     "--max-gap-s",
-    type=float,
+    type=FINITE_FLOAT,
     default=5.0,
     callback=_seconds_within(3600.0),
     show_default=True,

@@ -19,7 +19,7 @@ from processing.handoff.quicklook import (
 )
 from processing.image_tags import camera_option
 
-from ..common import dumps_json, echo_table, json_option, overwrite_option
+from ..common import FINITE_FLOAT, FiniteFloatRange, dumps_json, echo_table, json_option, overwrite_option
 
 _ENGINES = [e.value for e in Engine]
 
@@ -75,11 +75,13 @@ _ENGINES = [e.value for e in Engine]
 @click.option(
     "--dem", type=click.Path(exists=True, dir_okay=False, path_type=Path), help="Ground DEM, GeoTIFF, m AMSL."
 )
-@click.option("--ground-elevation-m", type=float, default=None, help="Flat ground at this elevation, m AMSL.")
-@click.option("--takeoff-elevation-m", type=float, default=None, help="Take-off elevation, m AMSL.")
+@click.option(
+    "--ground-elevation-m", type=FINITE_FLOAT, default=None, help="Flat ground at this elevation, m AMSL."
+)
+@click.option("--takeoff-elevation-m", type=FINITE_FLOAT, default=None, help="Take-off elevation, m AMSL.")
 @click.option(
     "--min-overlap-pct",
-    type=click.FloatRange(0.1, 100.0),
+    type=FiniteFloatRange(0.1, 100.0),
     default=5.0,
     show_default=True,
     help="Smallest footprint overlap of a matched pair, percent of the smaller footprint.",

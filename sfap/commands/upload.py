@@ -35,7 +35,15 @@ from acquisition.vehicle_params import (
 from planner.errors import MissionFileError, MissionValidationError
 from planner.mission import validate_mission
 
-from ..common import connect_options, echo_json, echo_table, json_option, progress
+from ..common import (
+    FINITE_FLOAT,
+    FiniteFloatRange,
+    connect_options,
+    echo_json,
+    echo_table,
+    json_option,
+    progress,
+)
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -53,7 +61,7 @@ def link_options(function: F) -> F:
     options = [
         click.option(
             "--timeout-s",
-            type=click.FloatRange(min=0.01),
+            type=FiniteFloatRange(min=0.01),
             default=DEFAULT_TIMEOUT_S,
             show_default=True,
             help="Seconds to wait for the vehicle before repeating a mission message.",
@@ -143,14 +151,14 @@ def progress_bars(enabled: bool = True) -> Iterator[ProgressBars]:
 @link_options
 @click.option(
     "--max-alt-rel-home-m",
-    type=float,
+    type=FINITE_FLOAT,
     default=None,
     help="The vehicle's altitude limit in metres above home; higher items are refused before "
     "anything is sent. Default: no limit.",
 )
 @click.option(
     "--max-home-distance-m",
-    type=click.FloatRange(min=0.0),
+    type=FiniteFloatRange(min=0.0),
     default=1000.0,
     show_default=True,
     help="Warn when the first waypoint is farther than this from the vehicle's home (metres): "

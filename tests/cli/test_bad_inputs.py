@@ -221,3 +221,38 @@ def test_geotag_refuses_an_absurd_offset_and_a_backup_folder_below_a_file(
         "cannot write the backup folder ro/b: ro is not writable",
     )
     assert sorted(p.name for p in tmp_path.iterdir()) == ["afile", "card", "flight.tlog", "ro"]
+
+
+# Every number option of the data commands: NaN and infinities parse as floats, and every comparison
+# with NaN is false, so a range check downstream would let them through (a cell of nan metres, a
+# timeout that never ends). click is the parser here: the option's value is refused by name, exit 2.
+_NUMBER_OPTIONS = [
+    ("check", "--ground-elevation-m"),
+    ("check", "--cell-m"),
+    ("handoff", "--ground-elevation-m"),
+    ("handoff", "--takeoff-elevation-m"),
+    ("handoff", "--min-overlap-pct"),
+    ("geotag", "--offset-s"),
+    ("geotag", "--tolerance-s"),
+    ("geotag", "--max-gap-s"),
+    ("gcp-plan", "--clearance-m"),
+    ("gcp-plan", "--edge-margin-m"),
+    ("upload", "--timeout-s"),
+    ("upload", "--max-home-distance-m"),
+]
+
+
+@pytest.mark.parametrize("value", ["nan", "inf", "-inf"])
+@pytest.mark.parametrize(("command", "option"), _NUMBER_OPTIONS)
+def test_a_number_option_refuses_what_is_not_a_finite_number(
+    command: str, option: str, value: str, tmp_path: Path
+) -> None:
+    folder = tmp_path / "in"
+    folder.mkdir()
+    target = folder if command in ("check", "handoff", "geotag") else folder / "x.toml"
+    out = tmp_path / "out"
+    output = [] if command == "upload" else ["-o", str(out)]
+    result = CliRunner().invoke(cli, [command, str(target), f"{option}={value}", *output])
+    assert result.exit_code == 2, result.output
+    assert option in result.output and "not a finite number" in result.output, result.output
+    assert not out.exists()
