@@ -411,6 +411,16 @@ def judge_terrain_overlaps(
                 f"{want - got:.1f} points below the {want:g} % asked, between the frames around lon "
                 f"{float(lon):.6f}, lat {float(lat):.6f}"
             )
+    judged = {o.pass_index for o in overlaps}
+    unjudged = [p.name for p in passes if p.tilt_deg != 0.0 and p.index not in judged]
+    if unjudged:
+        # Said, never silent: the cast judges the nadir frames only (a tilted frame's footprint
+        # over relief is not a trapezoid whose facing edges the cut compares).
+        warnings.append(
+            f"over the DEM the overlaps of the oblique pass(es) {', '.join(unjudged)} are not judged: "
+            "their lines and triggers are spaced for the planned height over flat ground; check them "
+            "with `sfap check` of the plan folder, which casts every frame on the plan's DEM"
+        )
     if not short:
         return
     fix = (

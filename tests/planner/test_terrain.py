@@ -339,3 +339,23 @@ def test_terrain_figures_of_the_summary(terrain_plan: SurveyPlan, dem: Dem) -> N
     assert float(terrain["footprint_scale"]) <= float(terrain["footprint_scale_min"]) + 1e-9  # type: ignore[arg-type]
     assert float(terrain["front_overlap_min_pct"]) >= 80.0 - 1.0  # type: ignore[arg-type]
     assert float(terrain["side_overlap_min_pct"]) >= 70.0 - 1.0  # type: ignore[arg-type]
+
+
+def test_oblique_passes_over_a_dem_are_said_to_be_unjudged(tmp_path: Path, terrain_plan: SurveyPlan) -> None:
+    """The DEM cast judges the nadir frames' overlaps only: a plan with oblique passes over relief
+    says, by pass name, that theirs were not judged, never leaving it silent; the nadir-only plan
+    says nothing of the kind."""
+    source = (MISSIONS / "bardenas-gully-terrain.toml").read_text()
+    source = source.replace('"bardenas-gully', f'"{MISSIONS}/bardenas-gully')
+    source = source.replace(
+        'trigger = "distance"\n',
+        'trigger = "distance"\n\n[[survey.oblique]]\ntilt_deg = 30\nheadings_deg = [0, 180]\n',
+    )
+    spec_file = tmp_path / "oblique.toml"
+    spec_file.write_text(source)
+    plan = plan_survey(load_spec(spec_file))
+    said = [w for w in plan.warnings if "oblique" in w and "not judged" in w]
+    assert len(said) == 1
+    obliques = {p.name for p in plan.passes if p.tilt_deg != 0.0}
+    assert len(obliques) == 2 and all(name in said[0] for name in obliques)
+    assert not [w for w in terrain_plan.warnings if "not judged" in w]
