@@ -17,6 +17,7 @@ import shapely
 
 from . import exposure as ex
 from . import trigger as trig
+from .fixed_wing import fixed_wing_for
 from .lines import END_STATIONS
 from .spec import MissionSpec, TriggerMode
 
@@ -74,6 +75,13 @@ def estimate(spec: MissionSpec, area_xy: shapely.Geometry, passes: Sequence[Pass
     area_m2 = float(area_xy.area)
     lines = photos = runs = 0
     length_m = 0.0
+    # The straight flown before and after each line: the turnaround, or a plane's run-in (one L1
+    # period of flight) and lead-out, and its turn at least a U-turn's half circle.
+    ends_m, turn_m = 2.0 * survey.turnaround_m, 0.0
+    plane = fixed_wing_for(spec, survey.speed_m_s, 0.0)
+    if plane is not None:
+        ends_m = max(ends_m, plane.lead_in_m + plane.lead_out_m)
+        turn_m = math.pi * plane.radius_m
     for p in passes:
         base = ex.air_base_m(p.rect.along_m, p.front_overlap_pct)
         spacing = ex.air_base_m(p.rect.across_m, p.side_overlap_pct)
@@ -86,7 +94,7 @@ def estimate(spec: MissionSpec, area_xy: shapely.Geometry, passes: Sequence[Pass
         photos += pass_photos
         # long lines are cut into runs that each re-arm the trigger (planner.trigger)
         runs += max(n, math.ceil(pass_photos / trig.max_run_stations(base, survey.speed_m_s)))
-        length_m += on_m + n * (2.0 * survey.turnaround_m + spacing)
+        length_m += on_m + n * (ends_m + max(spacing, turn_m))
     speed = survey.speed_m_s
     hover = survey.trigger is TriggerMode.HOVER
     seconds = length_m / speed + (photos * (survey.hover_hold_s + speed) if hover else 0.0)
