@@ -54,7 +54,7 @@ MAX_OUTLINE_CANDIDATES = 4000
 MAX_GRID_CANDIDATES = 20000
 KMEANS_ITERATIONS = 30
 #: Footprints made into polygons at a time when counting the frames that see each candidate.
-FOOTPRINT_BLOCK = 50_000
+FOOTPRINT_BLOCK = 2_000
 
 
 @dataclass(frozen=True, kw_only=True)
