@@ -53,6 +53,8 @@ from .plan import SurveyPlan
 MAX_OUTLINE_CANDIDATES = 4000
 MAX_GRID_CANDIDATES = 20000
 KMEANS_ITERATIONS = 30
+#: Footprints made into polygons at a time when counting the frames that see each candidate.
+FOOTPRINT_BLOCK = 2_000
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -189,16 +191,24 @@ def _no_ground_message(plan: SurveyPlan, options: GcpOptions) -> str:
 
 
 def frame_counts(plan: SurveyPlan, x_m: NDArray[np.float64], y_m: NDArray[np.float64]) -> NDArray[np.int64]:
-    """How many planned footprints hold each point (every pass, obliques included)."""
+    """How many planned footprints hold each point (every pass, obliques included): a point on a
+    footprint's edge is not held.
+
+    The spatial index is built over the points (a few thousand candidates), not over the frames
+    (up to millions), and the footprints are made into polygons and queried a block of
+    :data:`FOOTPRINT_BLOCK` at a time: memory stays that of one block whatever the plan's size,
+    and the time grows with the frames alone."""
     corners = plan.stations.footprint_xy_m
+    counts = np.zeros(len(x_m), np.int64)
     if len(corners) == 0 or len(x_m) == 0:
-        return np.zeros(len(x_m), np.int64)
-    rings = np.concatenate([corners, corners[:, :1]], axis=1)
-    footprints = shapely.polygons(rings)
-    tree = shapely.STRtree(footprints)
-    points = shapely.points(x_m, y_m)
-    hits = tree.query(points, predicate="within")
-    return np.bincount(hits[0], minlength=len(x_m)).astype(np.int64)
+        return counts
+    tree = shapely.STRtree(shapely.points(x_m, y_m))
+    for start in range(0, len(corners), FOOTPRINT_BLOCK):
+        block = np.asarray(corners[start : start + FOOTPRINT_BLOCK], dtype=np.float64)
+        rings = np.concatenate([block, block[:, :1]], axis=1)
+        _, held = tree.query(shapely.polygons(rings), predicate="contains")
+        counts += np.bincount(held, minlength=len(x_m))
+    return counts
 
 
 def plan_gcps(plan: SurveyPlan, options: GcpOptions) -> GcpLayout:

@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Any
 from xml.sax.saxutils import escape
 
+from .estimate import MAX_PHOTOS
 from .gcp_layout import GcpLayout, GcpOptions, plan_gcps
 from .outputs import atomic_write_bytes, atomic_write_text, staged_output_dir
 from .plan import SurveyPlan
@@ -215,14 +216,20 @@ def write_gcp_outputs(
 
 
 def plan_gcp_folder(
-    spec_file: str | Path, options: GcpOptions, out_dir: str | Path, *, overwrite: bool = False
+    spec_file: str | Path,
+    options: GcpOptions,
+    out_dir: str | Path,
+    *,
+    overwrite: bool = False,
+    max_photos: int | None = MAX_PHOTOS,
 ) -> tuple[SurveyPlan, GcpLayout]:
-    """What ``sfap gcp-plan`` does: plan the survey of the mission spec ``spec_file``, lay out
-    its ground control (planner.gcp_layout) and write the files into ``out_dir``."""
+    """What ``sfap gcp-plan`` does: plan the survey of the mission spec ``spec_file`` (refused at
+    once beyond ``max_photos`` photos, as ``sfap plan`` does), lay out its ground control
+    (planner.gcp_layout) and write the files into ``out_dir``."""
     from .spec import load_spec
     from .survey import plan_survey
 
-    plan = plan_survey(load_spec(spec_file))
+    plan = plan_survey(load_spec(spec_file), max_photos=max_photos)
     layout = plan_gcps(plan, options)
     write_gcp_outputs(plan, layout, str(out_dir), overwrite=overwrite)
     return plan, layout

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import click
 
+from planner.estimate import MAX_PHOTOS
 from planner.gcp_layout import GcpOptions
 from planner.gcp_outputs import plan_gcp_folder
 
@@ -48,6 +49,14 @@ from ..common import FINITE_FLOAT, dumps_json, echo_table, json_option, overwrit
     show_default=True,
     help="Least distance between points, m.",
 )
+@click.option(
+    "--max-photos",
+    "max_photos",
+    type=click.IntRange(min=1),
+    default=MAX_PHOTOS,
+    show_default=True,
+    help="Refuse at once a survey estimated at more photos than this (as sfap plan does).",
+)
 @overwrite_option
 @json_option
 def command(
@@ -59,6 +68,7 @@ def command(
     clearance_m: float,
     edge_margin_m: float,
     min_separation_m: float,
+    max_photos: int,
     overwrite: bool,
     as_json: bool,
 ) -> None:
@@ -79,7 +89,7 @@ def command(
         edge_margin_m=edge_margin_m,
         min_separation_m=min_separation_m,
     )
-    plan, layout = plan_gcp_folder(spec_file, options, out_dir, overwrite=overwrite)
+    plan, layout = plan_gcp_folder(spec_file, options, out_dir, overwrite=overwrite, max_photos=max_photos)
     if as_json:
         click.echo(dumps_json({**layout.as_dict(), "output_dir": str(out_dir)}))
         return

@@ -7,19 +7,25 @@ from __future__ import annotations
 
 import math
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
+import shapely
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from shapely.geometry import Point, Polygon
 from survey_oracles import make_spec
 from test_survey import star_polygon, to_lonlat_polygon
 
+import planner.gcp_layout
 from planner.errors import InputError
-from planner.gcp_layout import GcpOptions, plan_gcps, usable_ground
+from planner.gcp_layout import GcpOptions, frame_counts, plan_gcps, usable_ground
 from planner.plan import SurveyPlan
-from planner.survey import plan_polygons
+from planner.spec import load_spec
+from planner.survey import plan_polygons, plan_survey
+
+REPO = Path(__file__).resolve().parents[2]
 
 
 def frames_seeing(plan: SurveyPlan, x: float, y: float) -> int:
@@ -83,6 +89,30 @@ def test_points_inside_clear_and_seen(
     xy = np.array([(p.x_m, p.y_m) for p in layout.points])
     d = np.hypot(xy[:, None, 0] - xy[None, :, 0], xy[:, None, 1] - xy[None, :, 1])
     assert d[np.triu_indices(len(xy), 1)].min() >= 30.0 - 1e-6
+
+
+def test_frame_counts_match_a_brute_force_count_over_every_frame(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The frames that see each point, counted block by block through the index over the points,
+    are those a brute-force test of every footprint polygon finds (shapely's contains_xy of each
+    point against every frame, no index): on the quarry's six passes (nadir, crosshatch, four obliques),
+    for random points over the block, footprint corners and edge midpoints (on an edge: not
+    held), with blocks of 997 frames so that many blocks and a partial last one are summed."""
+    plan = plan_survey(load_spec(REPO / "missions" / "quarry-block.toml"))
+    quads = plan.stations.footprint_xy_m
+    assert len(quads) > 10 * 997
+    monkeypatch.setattr(planner.gcp_layout, "FOOTPRINT_BLOCK", 997)
+    rng = np.random.default_rng(21)
+    x0, y0, x1, y1 = plan.area_xy.bounds
+    pad = 0.2 * max(x1 - x0, y1 - y0)
+    picks = rng.choice(len(quads), 30, replace=False)
+    corners = quads[picks].reshape(-1, 2)
+    midpoints = ((quads[picks] + np.roll(quads[picks], -1, axis=1)) / 2).reshape(-1, 2)
+    xy = np.vstack([rng.uniform((x0 - pad, y0 - pad), (x1 + pad, y1 + pad), (150, 2)), corners, midpoints])
+    polygons = np.array([Polygon(q) for q in quads], dtype=object)
+    expected = np.array([np.count_nonzero(shapely.contains_xy(polygons, x, y)) for x, y in xy], np.int64)
+    got = frame_counts(plan, xy[:, 0].copy(), xy[:, 1].copy())
+    assert expected.max() >= 20 and (expected == 0).any()  # the points span unseen to well seen
+    np.testing.assert_array_equal(got, expected)
 
 
 def test_corners_and_interior_are_spread() -> None:
