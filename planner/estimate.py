@@ -130,5 +130,5 @@ def too_large(spec: MissionSpec, est: PlanEstimate, max_photos: int) -> str | No
     return (
         f"{spec.source}: this plan would hold {est.text()}, more than the {max_photos:,} photos planned "
         f"without asking; split the area into at least {blocks} blocks, ask for {coarser}, or raise the "
-        f"limit (sfap plan --max-photos {est.photos + 1})"
+        f"limit (--max-photos {est.photos + 1})"
     )

@@ -19,7 +19,7 @@ def test_a_survey_beyond_max_photos_is_refused_and_a_higher_limit_lays_it_out(tm
     assert refused.exit_code == 2, refused.output
     lines = [line for line in refused.output.splitlines() if line.strip()]
     assert len(lines) == 1 and "Traceback" not in refused.output
-    assert "photos" in lines[0] and "--max-photos" in lines[0]
+    assert "photos" in lines[0] and "--max-photos" in lines[0] and "sfap plan" not in lines[0]
     assert not out.exists()
     args = ["gcp-plan", str(SPEC), "-o", str(out), "--max-photos", "100000", "--json"]
     done = CliRunner().invoke(cli, args)
