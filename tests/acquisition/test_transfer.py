@@ -744,7 +744,10 @@ def test_mission_larger_than_the_vehicle_is_refused_at_once_with_the_excess() ->
             upload_mission(link, mission_of(items), **{**FAST, "no_space_wait_s": 2.0})
         # no retry as after boot: one MISSION_COUNT, and no pause of no_space_wait_s
         assert sim.received_counts.get("MISSION_COUNT") == 1
-        assert sim.stored_mission() == before
+        # The items are unchanged; home (item 0) is the vehicle's own, set at its GPS fix, which
+        # may come during the attempt (it made this test fail under load when compared too).
+        after = sim.stored_mission()
+        assert len(after) == len(before) and after[1:] == before[1:]
     error = caught.value
     count = len(items) + 1  # ArduPilot: home is item 0
     assert (error.items, error.capacity) == (count, 30)
