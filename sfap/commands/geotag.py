@@ -156,7 +156,7 @@ def _card_ahead(
 )
 @click.option(
     "--tolerance-s",
-    type=FINITE_FLOAT,
+    type=float,
     default=None,
     callback=_seconds_within(60.0),
     help="Largest capture-time residual of a frame/event pair, seconds. Default: 35 percent of the "
@@ -164,7 +164,7 @@ def _card_ahead(
 )
 @click.option(
     "--max-gap-s",
-    type=FINITE_FLOAT,
+    type=float,
     default=5.0,
     callback=_seconds_within(3600.0),
     show_default=True,

@@ -226,6 +226,7 @@ def test_geotag_refuses_an_absurd_offset_and_a_backup_folder_below_a_file(
 # Every number option of the data commands: NaN and infinities parse as floats, and every comparison
 # with NaN is false, so a range check downstream would let them through (a cell of nan metres, a
 # timeout that never ends). click is the parser here: the option's value is refused by name, exit 2.
+# (geotag's --tolerance-s and --max-gap-s state their ranges instead: test_max_gap_states_its_range.)
 _NUMBER_OPTIONS = [
     ("check", "--ground-elevation-m"),
     ("check", "--cell-m"),
@@ -233,8 +234,6 @@ _NUMBER_OPTIONS = [
     ("handoff", "--takeoff-elevation-m"),
     ("handoff", "--min-overlap-pct"),
     ("geotag", "--offset-s"),
-    ("geotag", "--tolerance-s"),
-    ("geotag", "--max-gap-s"),
     ("gcp-plan", "--clearance-m"),
     ("gcp-plan", "--edge-margin-m"),
     ("upload", "--timeout-s"),
