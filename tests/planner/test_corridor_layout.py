@@ -65,9 +65,16 @@ def test_pieces_tile_the_corridor_and_the_fewest_lines_cover_its_width(
     # Tiling: the pieces cover the corridor and do not overlap.
     union_area = sum(p.area for p in layout.pieces_xy)
     assert union_area == pytest.approx(corridor.area, rel=1e-3)
-    for i, a in enumerate(layout.pieces_xy):
-        for b in layout.pieces_xy[i + 1 :]:
-            assert a.intersection(b).area < 1e-3 * corridor.area
+    # No point lies inside two pieces: counted with the contains predicate on a dense grid, not with
+    # an overlay (GEOS 3.14's floating overlay reports a false intersection of 6,065 m2 for two
+    # disjoint pieces at a sharp bend, line (0, 0), (11.806, 375.677), (89.167, 396.057), width 80 m,
+    # and its fixed-precision one fails on others with a topology exception).
+    dense_x, dense_y = np.meshgrid(
+        np.linspace(minx - width_m, maxx + width_m, 120), np.linspace(miny - width_m, maxy + width_m, 120)
+    )
+    dense = shp_points(dense_x.ravel(), dense_y.ravel())
+    inside = sum(np.asarray(piece.contains(dense), dtype=int) for piece in layout.pieces_xy)
+    assert int(np.max(inside)) <= 1
     assert len(layout.pieces_xy) == len(layout.flown_xy.coords) - 1
     # Lines: n at the spacing, centred, spanning the width plus the simplification tolerance;
     # one fewer would not.
