@@ -170,10 +170,15 @@ class CameraMount(StrEnum):
       camera's; the camera's heading is the vehicle's.
     - ``fixed``: fixed to the airframe looking down (a fixed wing's hatch, no gimbal): the
       vehicle's attitude is the camera's.
+    - ``auto``: as the log says the vehicle is: a fixed wing or a VTOL (a fixed wing with lift
+      rotors, which flies its survey lines as one and carries its camera in the fuselage, as
+      Wingtra's, DeltaQuad's and Quantum's do) ``fixed``; a multirotor, a helicopter, another
+      vehicle or a log that does not say ``gimbal``.
     """
 
     GIMBAL = "gimbal"
     FIXED = "fixed"
+    AUTO = "auto"
 
 
 def heading_only_deg(yaw_deg: ArrayLike) -> tuple[F64, F64, F64]:

@@ -19,7 +19,7 @@ from .geotag_offset import offset_cost_warning, track_speeds_m_s
 from .geotag_results import FrameResult, FrameStatus, GeotagOptions, OffsetSource, PositionSource
 from .interpolation import InterpolatedPose, PoseInterpolation, interpolate_poses
 from .matching import Matching
-from .telemetry.model import AttitudeTrack, CameraEvents, FlightLog
+from .telemetry.model import AttitudeTrack, CameraEvents, FlightLog, VehicleType
 
 F64 = NDArray[np.float64]
 
@@ -48,28 +48,52 @@ def _accuracy(options: GeotagOptions, speed_m_s: float, timing_s: float) -> tupl
     return xy, options.z_accuracy_m
 
 
-def camera_attitude_track(log: FlightLog, mount: CameraMount) -> tuple[AttitudeTrack | None, str | None]:
-    """The attitude track the camera's attitude is taken from, and a sentence saying which when
-    the log has no gimbal angles: the vehicle's (a camera fixed to the airframe), or the
-    vehicle's heading alone (a camera on a stabilised gimbal looks straight down whatever the
-    vehicle's pitch and roll: writing those as the camera's would tilt a nadir block)."""
+def resolve_mount(mount: CameraMount, vehicle_type: VehicleType | None) -> tuple[CameraMount, str]:
+    """The camera's mount (``auto`` resolved by what the log says the vehicle is: see
+    :class:`CameraMount`) and where that choice came from, for the attitude sentence."""
+    if mount is not CameraMount.AUTO:
+        return mount, f"--camera-mount {mount}"
+    if vehicle_type is None:
+        return CameraMount.GIMBAL, "the log does not say what the vehicle is: a gimbal assumed"
+    fixed = vehicle_type in (VehicleType.FIXED_WING, VehicleType.VTOL)
+    return CameraMount.FIXED if fixed else CameraMount.GIMBAL, f"the log says a {vehicle_type}"
+
+
+def camera_attitude_track(
+    log: FlightLog, mount: CameraMount
+) -> tuple[AttitudeTrack | None, CameraMount, str | None]:
+    """The attitude track the camera's attitude is taken from, the mount used (``auto``
+    resolved), and a sentence saying which attitude and why when the log has no gimbal angles:
+    the vehicle's (a camera fixed to the airframe), or the vehicle's heading alone (a camera on a
+    stabilised gimbal looks straight down whatever the vehicle's pitch and roll: writing those as
+    the camera's would tilt a nadir block)."""
+    mount, why = resolve_mount(mount, log.vehicle_type)
     vehicle = log.attitudes
     if vehicle is None or len(vehicle) == 0:
-        return vehicle, None
+        return vehicle, mount, None
     if log.gimbal is not None and len(log.gimbal) > 0:
-        return vehicle, None
+        return vehicle, mount, None
     if mount is CameraMount.FIXED:
-        return vehicle, (
-            "attitude: the vehicle's (the log has no gimbal angles; --camera-mount fixed: the "
-            "camera is fixed to the airframe)"
+        return (
+            vehicle,
+            mount,
+            (
+                f"attitude: the vehicle's, the camera fixed to the airframe (the log has no gimbal angles; "
+                f"{why}); give --camera-mount gimbal for a camera on a stabilised gimbal"
+            ),
         )
     yaw, pitch, roll = heading_only_deg(vehicle.yaw_deg)
     heading = AttitudeTrack(
         time_utc_s=vehicle.time_utc_s, roll_deg=roll, pitch_deg=pitch, yaw_deg=yaw, source=vehicle.source
     )
-    return heading, (
-        "attitude: the camera looking straight down on a stabilised gimbal, heading the vehicle's "
-        "(the log has no gimbal angles); give --camera-mount fixed for a camera fixed to the airframe"
+    return (
+        heading,
+        mount,
+        (
+            "attitude: the camera looking straight down on a stabilised gimbal, heading the vehicle's "
+            f"(the log has no gimbal angles; {why}); give --camera-mount fixed for a camera fixed to "
+            "the airframe"
+        ),
     )
 
 
@@ -131,7 +155,7 @@ def place_frames(
         else:
             place_times.append(float(utc_of_frame[k]))
 
-    attitudes, attitude_note = camera_attitude_track(log, options.camera_mount)
+    attitudes, mount, attitude_note = camera_attitude_track(log, options.camera_mount)
     if attitude_note is not None and timed:
         warnings.append(attitude_note)
     interpolation: PoseInterpolation | None = None
@@ -176,7 +200,7 @@ def place_frames(
             base["event_seq"] = int(events.seq[j])
             base["time_residual_s"] = residual_of.get(k)
             if options.position_source is not PositionSource.TRACK:
-                event_pose = _event_pose(events, j, options.camera_mount)
+                event_pose = _event_pose(events, j, mount)
             else:
                 event_pose = None
             if prefer_event and event_pose is not None:

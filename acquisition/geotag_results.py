@@ -78,7 +78,7 @@ class GeotagOptions:
     place_extra_by_time: bool = True
     position_source: PositionSource = PositionSource.AUTO
     gimbal_mode: GimbalMode = GimbalMode.EARTH
-    camera_mount: CameraMount = CameraMount.GIMBAL
+    camera_mount: CameraMount = CameraMount.AUTO
 
     def __post_init__(self) -> None:
         if self.tolerance_s is not None and not (0.0 < self.tolerance_s <= 60.0):

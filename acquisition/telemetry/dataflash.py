@@ -51,6 +51,7 @@ from .model import (
     FlightLog,
     PositionTrack,
     ReadProgress,
+    VehicleType,
     assemble_log,
     gimbal_track,
     position_track,
@@ -61,6 +62,9 @@ log = logging.getLogger(__name__)
 F64 = NDArray[np.float64]
 
 _TYPES = ["CAM", "TRIG", "GPS", "GPA", "POS", "ATT", "MNT"]
+# MSG: the firmware names itself ("ArduPlane V4.5.6 (7ce11b41)") in the first messages; a
+# QuadPlane is an ArduPlane too (a fixed wing with lift rotors).
+_FIRMWARE = re.compile(r"^\s*Ardu(Plane|Copter)\b")
 # Integer format characters that DFReader does not scale; an attitude stored in one of them
 # is in centi-degrees (the int16 roll/pitch/uint16 yaw of the old log structures).
 _RAW_INT_FORMATS = set("bBhHiI")
@@ -157,7 +161,7 @@ def _read(path: str, progress: ReadProgress | None = None) -> tuple[dict[str, _C
         except (OSError, ValueError, KeyError, IndexError, struct.error) as exc:
             raise TelemetryError(f"{path}: not a readable DataFlash log: {exc}") from exc
         try:
-            wanted = [t for t in _TYPES if t in reader.name_to_id]
+            wanted = [t for t in [*_TYPES, "MSG"] if t in reader.name_to_id]
             total = int(reader.data_len)
             next_report = 0
             while wanted:
@@ -386,6 +390,7 @@ def read_dataflash(path: str | os.PathLike[str], progress: ReadProgress | None =
     module docstring). Raises :class:`TelemetryError` when the file is not one."""
     p = os.fspath(path)
     tables, complaints, end, size = _read(p, progress)
+    vehicle_type = _vehicle_type(tables.pop("MSG", None))
     if progress is not None:
         progress(2 * size, 2 * size)
     warnings: list[str] = []
@@ -410,4 +415,18 @@ def read_dataflash(path: str | os.PathLike[str], progress: ReadProgress | None =
         if size and end == 0:
             raise TelemetryError(f"{p}: no DataFlash message could be read ({size} bytes)")
         warnings.append(f"{p}: none of {', '.join(_TYPES)} in the log")
-    return assemble_log(p, "dataflash", warnings, tables, _clock, _events, _attitudes, _gimbal, _positions)
+    return assemble_log(
+        p, "dataflash", warnings, tables, _clock, _events, _attitudes, _gimbal, _positions, vehicle_type
+    )
+
+
+def _vehicle_type(msg: _Columns | None) -> VehicleType | None:
+    """What the firmware's own MSG says the vehicle is (ArduPlane, ArduCopter); None when no
+    MSG names either."""
+    if msg is None or not msg.has("Message"):
+        return None
+    i = msg.names.index("Message")
+    for row in msg.rows:
+        if m := _FIRMWARE.match(str(row[i])):
+            return VehicleType.FIXED_WING if m.group(1) == "Plane" else VehicleType.MULTIROTOR
+    return None

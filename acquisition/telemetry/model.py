@@ -9,6 +9,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
+from enum import StrEnum
 from typing import TypeVar
 
 import numpy as np
@@ -86,6 +87,36 @@ class AttitudeTrack:
         return int(self.time_utc_s.shape[0])
 
 
+class VehicleType(StrEnum):
+    """What the log says the vehicle is (a .tlog's HEARTBEAT type, a DataFlash log's firmware
+    name, a .ulg's vehicle_status system_type); it decides a camera's mount when the user does
+    not (see :class:`acquisition.attitude.CameraMount`)."""
+
+    FIXED_WING = "fixed wing"
+    VTOL = "VTOL"  # a fixed wing with lift rotors, flying its survey lines as a fixed wing
+    MULTIROTOR = "multirotor"
+    HELICOPTER = "helicopter"
+    OTHER = "vehicle of another kind"
+
+
+#: MAVLink's MAV_TYPE values (common.xml) of the kinds above; any other is OTHER.
+_MAV_TYPES = {
+    VehicleType.FIXED_WING: {1},  # FIXED_WING
+    # VTOL_TAILSITTER_DUOROTOR, _QUADROTOR, VTOL_TILTROTOR, VTOL_FIXEDROTOR, VTOL_TAILSITTER,
+    # VTOL_TILTWING, VTOL_RESERVED5 (older names: VTOL_DUOROTOR ... VTOL_RESERVED2-5), VTOL_GYRODYNE
+    VehicleType.VTOL: {19, 20, 21, 22, 23, 24, 25, 47},
+    # QUADROTOR, COAXIAL, HEXAROTOR, OCTOROTOR, TRICOPTER, DODECAROTOR, DECAROTOR,
+    # GENERIC_MULTIROTOR
+    VehicleType.MULTIROTOR: {2, 3, 13, 14, 15, 29, 35, 43},
+    VehicleType.HELICOPTER: {4},
+}
+
+
+def vehicle_type_of_mav_type(mav_type: int) -> VehicleType:
+    """The :class:`VehicleType` of a MAVLink MAV_TYPE value."""
+    return next((kind for kind, values in _MAV_TYPES.items() if mav_type in values), VehicleType.OTHER)
+
+
 @dataclass(frozen=True, kw_only=True)
 class FlightLog:
     """What one log file yields. Absent parts are None; ``warnings`` says what was odd
@@ -98,6 +129,7 @@ class FlightLog:
     attitudes: AttitudeTrack | None = None
     gimbal: AttitudeTrack | None = None
     warnings: tuple[str, ...] = field(default=())
+    vehicle_type: VehicleType | None = None  # None: the log does not say
 
 
 # --- what every reader does with them -----------------------------------------------------------
@@ -174,12 +206,13 @@ def flight_log(
     positions: PositionTrack | None = None,
     attitudes: AttitudeTrack | None = None,
     gimbal: AttitudeTrack | None = None,
+    vehicle_type: VehicleType | None = None,
 ) -> FlightLog:
     """The :class:`FlightLog` a reader returns, its warnings logged once here."""
     for warning in warnings:
         log.warning("%s", warning)
     tracks = FlightLog(path=path, format=fmt, positions=positions, attitudes=attitudes, gimbal=gimbal)
-    return replace(tracks, events=events, warnings=tuple(warnings))
+    return replace(tracks, events=events, warnings=tuple(warnings), vehicle_type=vehicle_type)
 
 
 def assemble_log(
@@ -192,6 +225,7 @@ def assemble_log(
     attitudes: Callable[[S, C], AttitudeTrack | None],
     gimbal: Callable[[str, S, C, AttitudeTrack | None], tuple[AttitudeTrack | None, list[str]]],
     positions: Callable[[S, C], PositionTrack | None],
+    vehicle_type: VehicleType | None = None,
 ) -> FlightLog:
     """The steps of a reader whose log carries a boot clock, in order: the clock onto UTC, the
     camera events, the vehicle's attitudes, the gimbal (its yaw made earth-frame with those
@@ -204,4 +238,13 @@ def assemble_log(
     mount, notes = gimbal(path, source, utc, vehicle)
     warnings += notes
     track = positions(source, utc)
-    return flight_log(path, fmt, warnings, events=camera, positions=track, attitudes=vehicle, gimbal=mount)
+    return flight_log(
+        path,
+        fmt,
+        warnings,
+        events=camera,
+        positions=track,
+        attitudes=vehicle,
+        gimbal=mount,
+        vehicle_type=vehicle_type,
+    )

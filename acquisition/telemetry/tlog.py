@@ -89,6 +89,7 @@ class _Reading:
     cam_idx: Counter[int] = field(default_factory=Counter)
     failed_captures: int = 0
     vehicle: tuple[int, int] | None = None
+    mav_type: int | None = None  # the vehicle's HEARTBEAT type
     ignored: Counter[tuple[int, int]] = field(default_factory=Counter)
 
 
@@ -220,6 +221,7 @@ def _take(
         heartbeat = mm.decode(message())
         if isinstance(heartbeat, mm.Heartbeat) and heartbeat.is_autopilot:
             r.vehicle = src  # the first autopilot heard; GCS, gimbals, cameras send INVALID
+            r.mav_type = heartbeat.mav_type
     if mtype not in _WANTED:
         return
     # Until the autopilot's first HEARTBEAT every source is taken as the vehicle.
@@ -538,5 +540,12 @@ def read_tlog(path: str | os.PathLike[str], progress: ReadProgress | None = None
     warnings += w
     positions = _positions(p, r, clock)
     return model.flight_log(
-        p, "tlog", warnings, events=events, positions=positions, attitudes=attitudes, gimbal=gimbal
+        p,
+        "tlog",
+        warnings,
+        events=events,
+        positions=positions,
+        attitudes=attitudes,
+        gimbal=gimbal,
+        vehicle_type=None if r.mav_type is None else model.vehicle_type_of_mav_type(r.mav_type),
     )

@@ -42,9 +42,11 @@ from .model import (
     CameraEvents,
     FlightLog,
     PositionTrack,
+    VehicleType,
     assemble_log,
     gimbal_track,
     position_track,
+    vehicle_type_of_mav_type,
 )
 
 log = logging.getLogger(__name__)
@@ -60,6 +62,7 @@ _TOPICS = [
     "vehicle_global_position",
     "vehicle_attitude",
     "gimbal_device_attitude_status",
+    "vehicle_status",
     *_GPS_TOPICS,
 ]
 
@@ -250,4 +253,18 @@ def read_ulog(path: str | os.PathLike[str]) -> FlightLog:
         )
     if ulog.file_corruption:
         warnings.append(f"{p}: pyulog found corrupt data and skipped it")
-    return assemble_log(p, "ulog", warnings, ulog, _clock, _events, _attitudes, _gimbal, _positions)
+    return assemble_log(
+        p, "ulog", warnings, ulog, _clock, _events, _attitudes, _gimbal, _positions, _vehicle_type(ulog)
+    )
+
+
+def _vehicle_type(ulog: Any) -> VehicleType | None:
+    """What vehicle_status says the vehicle is: its ``system_type`` (the MAVLink MAV_TYPE of the
+    airframe, a VTOL_* type for a VTOL). Not ``vehicle_type``: a VTOL's changes between rotary
+    and fixed wing with each transition. None when the log has no vehicle_status."""
+    status = _topic(ulog, "vehicle_status")
+    if status is None or len(status.get("timestamp", ())) == 0:
+        return None
+    if "system_type" in status:
+        return vehicle_type_of_mav_type(int(status["system_type"][0]))
+    return None

@@ -172,12 +172,13 @@ def _card_ahead(
 )
 @click.option(
     "--camera-mount",
-    type=click.Choice(["gimbal", "fixed"]),
-    default="gimbal",
+    type=click.Choice(["auto", "gimbal", "fixed"]),
+    default="auto",
     show_default=True,
     help="How the camera is carried, for a log without gimbal angles: gimbal = stabilised, "
     "looking straight down (as sfap's plans point it), heading the vehicle's; fixed = fixed to the "
-    "airframe, taking the vehicle's pitch and roll.",
+    "airframe, taking the vehicle's pitch and roll; auto = as the log says the vehicle is (fixed "
+    "for a fixed wing or a VTOL, gimbal for a multirotor, or for a track that does not say).",
 )
 @click.option("--dry-run", is_flag=True, help="Match and report; write nothing.")
 @click.option(

@@ -34,7 +34,7 @@ from acquisition import card as card_frames
 from acquisition.attitude import CameraMount
 from acquisition.errors import GeotagError
 from acquisition.geotag_results import FrameStatus, GeotagOptions, OffsetSource
-from acquisition.telemetry.model import AttitudeTrack, CameraEvents, FlightLog, PositionTrack
+from acquisition.telemetry.model import AttitudeTrack, CameraEvents, FlightLog, PositionTrack, VehicleType
 from planner.errors import InputError, OutputExistsError
 from planner.geo import LocalFrame, geodesic_distance_m
 
@@ -495,7 +495,10 @@ def test_a_gimbal_camera_is_not_given_the_vehicles_pitch(
     gimbal angles. A camera on a stabilised gimbal (the default, as sfap's plans point it) looks
     straight down: pitch and roll 0 in the Pix4D convention, the vehicle's heading as yaw, and the
     result says which attitude it used. With --camera-mount fixed the camera takes the vehicle's
-    attitude. The same from the track and from an event's own attitude (DataFlash CAM R, P, Y)."""
+    attitude. The same from the track and from an event's own attitude (DataFlash CAM R, P, Y).
+    The default (auto) follows what the log says the vehicle is (a fixed wing or a VTOL: fixed;
+    a multirotor, or a log that does not say: gimbal), and the sentence says where the choice
+    came from; an explicit mount wins over the log."""
     from acquisition.geotag_results import PositionSource
 
     card, truth = survey_images
@@ -514,13 +517,27 @@ def test_a_gimbal_camera_is_not_given_the_vehicles_pitch(
         log = replace(log, events=events)
         options["position_source"] = PositionSource.EVENT
     heading = np.unwrap(attitudes.yaw_deg, period=360.0)
-    for mount in CameraMount:
+    cases = [
+        (CameraMount.GIMBAL, VehicleType.FIXED_WING, CameraMount.GIMBAL, "; --camera-mount gimbal)"),
+        (CameraMount.FIXED, VehicleType.MULTIROTOR, CameraMount.FIXED, "; --camera-mount fixed)"),
+        (
+            CameraMount.AUTO,
+            None,
+            CameraMount.GIMBAL,
+            "the log does not say what the vehicle is: a gimbal assumed",
+        ),
+        (CameraMount.AUTO, VehicleType.MULTIROTOR, CameraMount.GIMBAL, "the log says a multirotor)"),
+        (CameraMount.AUTO, VehicleType.FIXED_WING, CameraMount.FIXED, "the log says a fixed wing)"),
+        (CameraMount.AUTO, VehicleType.VTOL, CameraMount.FIXED, "the log says a VTOL)"),
+    ]
+    for k, (asked, vehicle_type, mount, why) in enumerate(cases):
         result = geotag.geotag_images(
-            card, log, tmp_path / str(mount), dry_run=True,
-            options=GeotagOptions(camera_mount=mount, **options),  # type: ignore[arg-type]
+            card, replace(log, vehicle_type=vehicle_type), tmp_path / str(k), dry_run=True,
+            options=GeotagOptions(camera_mount=asked, **options),  # type: ignore[arg-type]
         )  # fmt: skip
         said = [w for w in result.warnings if w.startswith("attitude:")]
         assert len(said) == 1 and "no gimbal angles" in said[0], result.warnings
+        assert why in said[0], said
         matched = [f for f in result.frames if f.status is FrameStatus.MATCHED]
         assert len(matched) == len(truth) - 1
         for f in matched:
@@ -949,9 +966,12 @@ def test_real_autopilot_log(tmp_path: Path, sitl_log: FlightLog) -> None:
     kept = np.delete(times, dropped)
     spurious = float(events.time_utc_s[40] + 23.5 + 1.1)
     write_frames(tmp_path / "card", np.sort(np.append(kept, spurious)))
-    # the plane's camera is fixed to the airframe (a servo-triggered camera, no gimbal)
-    fixed = GeotagOptions(camera_mount=CameraMount.FIXED)
-    result = geotag.geotag_images(tmp_path / "card", sitl_log, tmp_path / "out", options=fixed)
+    # The plane's camera is fixed to the airframe (a servo-triggered camera, no gimbal): the
+    # default mount follows the log, which says a fixed wing (pymavlink's reading of its
+    # HEARTBEAT and MSG is the oracle in test_telemetry.py).
+    result = geotag.geotag_images(tmp_path / "card", sitl_log, tmp_path / "out")
+    said = [w for w in result.warnings if w.startswith("attitude:")]
+    assert len(said) == 1 and "the vehicle's" in said[0] and "the log says a fixed wing" in said[0], said
     assert [j for j, _ in result.unmatched_events] == dropped
     assert len(result.extra_frames) == 1
     assert result.offset_s == pytest.approx(23.5, abs=0.03)

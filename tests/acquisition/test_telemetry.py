@@ -34,7 +34,7 @@ from acquisition.telemetry.gpstime import (
     utc_to_gps_s,
     utc_to_gps_week_tow_s,
 )
-from acquisition.telemetry.model import FlightLog
+from acquisition.telemetry.model import FlightLog, VehicleType, vehicle_type_of_mav_type
 from acquisition.telemetry.mrk import read_mrk_table
 
 REAL = SHARED_DATA / "ardupilot_sitl_plane"
@@ -402,6 +402,80 @@ def test_quaternion_to_euler_round_trip(roll: float, pitch: float, yaw: float) -
 
 
 # ---------------------------------------------------------------- ULog
+
+
+# ---------------------------------------------------------------- what the log says the vehicle is
+
+
+def _pymavlink_kind(mav_type: int) -> VehicleType:
+    """The kind of a MAV_TYPE by the name pymavlink's own MAVLink enum table gives it."""
+    from pymavlink.dialects.v20 import common
+
+    name = common.enums["MAV_TYPE"][mav_type].name.removeprefix("MAV_TYPE_")
+    if "VTOL" in name:
+        return VehicleType.VTOL
+    if name == "FIXED_WING":
+        return VehicleType.FIXED_WING
+    if name == "HELICOPTER":
+        return VehicleType.HELICOPTER
+    if name.endswith(("ROTOR", "COPTER")) or name == "COAXIAL":
+        return VehicleType.MULTIROTOR
+    return VehicleType.OTHER
+
+
+def test_every_mav_type_is_the_kind_its_mavlink_name_says() -> None:
+    from pymavlink.dialects.v20 import common
+
+    values = [v for v in common.enums["MAV_TYPE"] if v != common.MAV_TYPE_ENUM_END]
+    assert len(values) > 30
+    for value in values:
+        assert vehicle_type_of_mav_type(value) is _pymavlink_kind(value), common.enums["MAV_TYPE"][value].name
+
+
+@needs_real
+def test_real_plane_logs_say_a_fixed_wing_as_pymavlink_reads_them(
+    tlog: FlightLog, dataflash: FlightLog
+) -> None:
+    """The oracle: pymavlink's own reading of the autopilot's first HEARTBEAT (the .tlog) and of
+    the firmware's MSG naming itself (the DataFlash log)."""
+    from pymavlink import mavutil
+
+    conn = mavutil.mavlink_connection(str(TLOG))
+    try:
+        while (hb := conn.recv_match(type="HEARTBEAT")) is not None:
+            if hb.autopilot != mavutil.mavlink.MAV_AUTOPILOT_INVALID:
+                break
+    finally:
+        conn.close()
+    assert hb is not None
+    assert tlog.vehicle_type is _pymavlink_kind(hb.type) is VehicleType.FIXED_WING
+    df = mavutil.mavlink_connection(str(BIN))
+    first = df.recv_match(type="MSG", condition="MSG.Message.startswith('Ardu')")
+    assert first is not None and first.Message.startswith("ArduPlane ")
+    assert dataflash.vehicle_type is VehicleType.FIXED_WING
+
+
+@pytest.mark.parametrize(
+    ("system_type", "is_vtol", "vehicle_type"),
+    [(1, False, 2), (22, True, 1), (2, False, 1)],
+    ids=["fixed-wing", "vtol-hovering", "quadrotor"],
+)
+def test_ulog_vehicle_status_says_the_kind(
+    tmp_path: Path, system_type: int, is_vtol: bool, vehicle_type: int
+) -> None:
+    """vehicle_status's system_type (a MAV_TYPE), not its vehicle_type (a VTOL's is the rotary
+    wing's while it hovers); a log without vehicle_status says nothing."""
+    assert read_log(DATA / "px4_survey.ulg").vehicle_type is None
+    gen = _ulog_fixture_module()
+    path = tmp_path / "status.ulg"
+    status = {"vehicle_type": vehicle_type, "is_vtol": is_vtol, "system_type": system_type}
+    path.write_bytes(gen.build_ulog(vehicle_status=status))
+    assert read_log(path).vehicle_type is _pymavlink_kind(system_type)
+
+
+def test_tracks_say_nothing_of_the_vehicle() -> None:
+    for name in ("track_exiftool.csv", "track.gpx"):
+        assert read_log(DATA / name).vehicle_type is None
 
 
 def _ulog_fixture_module() -> ModuleType:

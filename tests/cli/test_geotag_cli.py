@@ -72,23 +72,31 @@ def sitl_card(tmp_path: Path, sitl_log: FlightLog) -> Path:
     return tmp_path / "card"
 
 
-def _csv_track(path: Path, log: FlightLog, shift_s: float = 0.0) -> Path:
-    """The tlog's positions as an exiftool CSV track (the layout `exiftool -geotag` reads)."""
+def _csv_track(path: Path, log: FlightLog, shift_s: float = 0.0, *, attitude: bool = False) -> Path:
+    """The tlog's positions as an exiftool CSV track (the layout `exiftool -geotag` reads), with
+    the vehicle's attitude interpolated onto them when ``attitude``."""
     positions = log.positions
     assert positions is not None and positions.alt_amsl_m is not None
     lines = ["GPSDateTime,GPSLatitude,GPSLongitude,GPSAltitude"]
-    for t, lat, lon, alt in zip(
-        positions.time_utc_s,
-        positions.lat_deg,
-        positions.lon_deg,
-        positions.alt_amsl_m,
-        strict=True,
+    rpy: list[np.ndarray] = []
+    if attitude:
+        att = log.attitudes
+        assert att is not None
+        lines[0] += ",GPSImgDirection,GPSPitch,GPSRoll"
+        yaw = np.mod(
+            np.interp(positions.time_utc_s, att.time_utc_s, np.unwrap(att.yaw_deg, period=360.0)), 360
+        )
+        rpy = [yaw] + [
+            np.interp(positions.time_utc_s, att.time_utc_s, c) for c in (att.pitch_deg, att.roll_deg)
+        ]
+    for k, (t, lat, lon, alt) in enumerate(
+        zip(positions.time_utc_s, positions.lat_deg, positions.lon_deg, positions.alt_amsl_m, strict=True)
     ):
         if abs(lat) < 1.0 and abs(lon) < 1.0:
             continue  # the simulator's "0, 0" before its GPS fix
         moment = datetime.fromtimestamp(float(t) + shift_s, tz=UTC)
         stamp = moment.strftime("%Y:%m:%d %H:%M:%S.") + f"{moment.microsecond // 1000:03d}Z"
-        lines.append(f"{stamp},{lat:.8f},{lon:.8f},{alt:.3f}")
+        lines.append(f"{stamp},{lat:.8f},{lon:.8f},{alt:.3f}" + "".join(f",{c[k]:.3f}" for c in rpy))
     path.write_text("\n".join(lines) + "\n")
     return path
 
@@ -112,6 +120,39 @@ def test_geotag_real_tlog_names_dropped_and_extra(
     assert exif.compressed_image_data(out / tagged[0]) == exif.compressed_image_data(sitl_card / tagged[0])
     assert exif.read_tags(sitl_card / tagged[0]).gps_lat_deg is None  # originals untouched
     assert (out / "geo.txt").read_text().startswith("EPSG:4326\n")
+
+
+def _written_pitch_roll(out: Path) -> np.ndarray:
+    tags = [exif.read_tags(p) for p in sorted(out.glob("*.JPG"))]
+    assert tags and all(t.camera_pitch_deg is not None and t.camera_roll_deg is not None for t in tags)
+    return np.array([[t.camera_pitch_deg, t.camera_roll_deg] for t in tags], dtype=float)
+
+
+def test_camera_mount_follows_the_log_unless_given(
+    tmp_path: Path, sitl_card: Path, sitl_log: FlightLog
+) -> None:
+    """Issue 24: without gimbal angles, the default camera mount is what the log says the vehicle
+    is: the SITL plane's tlog says a fixed wing, so its body-fixed camera takes the vehicle's
+    pitch and roll (it fires while banking); --camera-mount gimbal overrides the log; a CSV track
+    says nothing, so a gimbal is assumed, and the output says so each time."""
+    code, _, stderr = _run("geotag", sitl_card, "--log", SITL_TLOG, "-o", tmp_path / "auto")
+    assert code == 0, stderr
+    assert (
+        "the vehicle's, the camera fixed to the airframe" in stderr and "the log says a fixed wing" in stderr
+    )
+    assert np.abs(_written_pitch_roll(tmp_path / "auto")).max() > 5.0
+    code, _, stderr = _run(
+        "geotag", sitl_card, "--log", SITL_TLOG, "-o", tmp_path / "gimbal", "--camera-mount", "gimbal"
+    )
+    assert code == 0, stderr
+    assert "stabilised gimbal" in stderr and "; --camera-mount gimbal)" in stderr
+    assert np.abs(_written_pitch_roll(tmp_path / "gimbal")).max() == 0.0
+    track = _csv_track(tmp_path / "track.csv", sitl_log, attitude=True)
+    code, _, stderr = _run(
+        "geotag", sitl_card, "--log", track, "-o", tmp_path / "csv", "--offset-s", str(OFFSET_S)
+    )
+    assert "the log does not say what the vehicle is: a gimbal assumed" in stderr, stderr
+    assert np.abs(_written_pitch_roll(tmp_path / "csv")).max() == 0.0
 
 
 def test_json_output_and_untagged_exit_1(tmp_path: Path, sitl_card: Path) -> None:

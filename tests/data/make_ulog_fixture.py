@@ -83,6 +83,15 @@ FORMATS = {
     ],
 }
 
+#: vehicle_status as PX4 logs it (the fields sfap reads), written only when asked for.
+VEHICLE_STATUS = [
+    ("uint64_t", "timestamp"),
+    ("uint8_t", "vehicle_type"),
+    ("bool", "is_vtol"),
+    ("uint8_t", "system_type"),
+    ("uint8_t[5]", "_padding0"),
+]
+
 _STRUCT = {
     "uint64_t": "Q",
     "int32_t": "i",
@@ -135,10 +144,10 @@ def _msg(msg_type: bytes, payload: bytes) -> bytes:
     return struct.pack("<HB", len(payload), msg_type[0]) + payload
 
 
-def _pack(name: str, values: dict[str, Any]) -> bytes:
+def _pack(fields: list[tuple[str, str]], values: dict[str, Any]) -> bytes:
     # PX4's logger leaves the trailing padding of a message out of the data it writes
     # (the format keeps it), and pyulog rejects data longer than the fields without it.
-    fields = list(FORMATS[name])
+    fields = list(fields)
     while fields and fields[-1][1].startswith("_padding"):
         fields.pop()
     flat: list[object] = []
@@ -152,18 +161,22 @@ def _pack(name: str, values: dict[str, Any]) -> bytes:
     return struct.pack(_struct_of(fields), *flat)
 
 
-def build_ulog() -> bytes:
-    """The bytes of the fixture (deterministic)."""
+def build_ulog(vehicle_status: dict[str, int] | None = None) -> bytes:
+    """The bytes of the fixture (deterministic); with ``vehicle_status`` (its fields' values) a
+    vehicle_status message at the start as well (the fixture itself has none)."""
+    formats = dict(FORMATS)
+    if vehicle_status is not None:
+        formats["vehicle_status"] = VEHICLE_STATUS
     out = bytearray(b"ULog\x01\x12\x35" + b"\x01" + struct.pack("<Q", 0))
     # Flag bits: no compat or incompat flag, no appended data.
     out += _msg(b"B", bytes(16) + struct.pack("<3Q", 0, 0, 0))
     for key, value in (("sys_name", b"PX4"), ("ver_hw", b"SFAP_FIXTURE")):
         key_text = f"char[{len(value)}] {key}".encode()
         out += _msg(b"I", bytes([len(key_text)]) + key_text + value)
-    for name, fields in FORMATS.items():
+    for name, fields in formats.items():
         text = name + ":" + "".join(f"{ft} {fn};" for ft, fn in fields)
         out += _msg(b"F", text.encode())
-    msg_ids = {name: i for i, name in enumerate(FORMATS)}
+    msg_ids = {name: i for i, name in enumerate(formats)}
     for name, i in msg_ids.items():
         out += _msg(b"A", struct.pack("<BH", 0, i) + name.encode())
 
@@ -172,9 +185,11 @@ def build_ulog() -> bytes:
     def add(t_s: float, name: str, values: dict[str, Any]) -> None:
         ts = round(t_s * 1e6)
         values = {"timestamp": ts, **values}
-        payload = struct.pack("<H", msg_ids[name]) + _pack(name, values)
+        payload = struct.pack("<H", msg_ids[name]) + _pack(formats[name], values)
         records.append((ts, len(records), _msg(b"D", payload)))
 
+    if vehicle_status is not None:
+        add(1.0, "vehicle_status", vehicle_status)
     for k in range(301):  # GPS, 5 Hz
         t = 5.0 + 0.2 * k
         lat, lon, alt = position(t)
