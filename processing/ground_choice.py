@@ -66,7 +66,9 @@ def ground_from_options(
     the same reference (their altitudes are rebased to AMSL). AGL frames lie over flat ground at
     0. Frames that are not survey frames over that ground (on the ground, climbing, in transit:
     :mod:`processing.survey_frames`) are left out and listed in ``GroundChoice.left_out``; a
-    ground that puts many frames at or under it is refused.
+    ground that puts many frames at or under it is refused, unless the GPS altitudes drift (over
+    flat ground): then they are detrended about mid-flight (one flying height assumed) and
+    ``GroundChoice.warnings`` says so.
     """
     from .ground import DemGround, FlatGround, check_reference
 
