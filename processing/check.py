@@ -58,6 +58,7 @@ from .frames import AttitudeSource, Frames, frames_local_frame
 from .ground import Ground
 from .pixel_match import PixelFigures, PixelOptions
 from .plan_frames import PlanInfo
+from .survey_frames import DETRENDED_HEAD
 from .verdict import DEFAULT_THRESHOLDS, Thresholds, above, judge, overlap_warnings
 
 log = logging.getLogger(__name__)
@@ -488,10 +489,10 @@ def run_check(
     fp, frame = projection.footprints, projection.frame
     stereo = measure_stereo(frames, fp, ground, frame, coverage.grid, coverage.in_area, thresholds)
     drift = _drift(frames, projection)
+    # Altitudes detrended by the ground choice drift as much: a scale that disagrees is the heights'.
+    heights_drift = drift is not None or any(w.startswith(DETRENDED_HEAD) for w in warnings)
     measured = (
-        measure_in_pixels(
-            frames, projection, stereo, pixels, camera_rough=camera_rough, drift=drift is not None
-        )
+        measure_in_pixels(frames, projection, stereo, pixels, camera_rough=camera_rough, drift=heights_drift)
         if pixels is not None
         else None
     )

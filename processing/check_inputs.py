@@ -96,7 +96,7 @@ def gather_inputs(
         choice,
         flown_plan,
         notes=(f"camera: {images.camera_source}", *images.notes),
-        warnings=images.warnings,
+        warnings=(*images.warnings, *choice.warnings),
         unpositioned=images.unpositioned,
         left_out=(*images.left_out, *choice.left_out),
         camera_source=images.camera_source,

@@ -43,6 +43,8 @@ class GroundChoice:
     frames: Frames
     description: str
     left_out: tuple[tuple[str, str], ...] = ()
+    #: What makes the heights unreliable (drifting GPS altitudes and what was done about it).
+    warnings: tuple[str, ...] = ()
 
 
 def ground_from_options(
@@ -64,7 +66,9 @@ def ground_from_options(
     the same reference (their altitudes are rebased to AMSL). AGL frames lie over flat ground at
     0. Frames that are not survey frames over that ground (on the ground, climbing, in transit:
     :mod:`processing.survey_frames`) are left out and listed in ``GroundChoice.left_out``; a
-    ground that puts many frames at or under it is refused.
+    ground that puts many frames at or under it is refused, unless the GPS altitudes drift (over
+    flat ground): then they are detrended about mid-flight (one flying height assumed) and
+    ``GroundChoice.warnings`` says so.
     """
     from .ground import DemGround, FlatGround, check_reference
 
@@ -143,8 +147,51 @@ def ground_from_options(
         ground = FlatGround(elevation_m=0.0, reference=ref, source="altitudes above ground")
         description = "camera altitudes above the ground below each frame"
     check_reference(ground, frames.alt_reference)
-    keep, left_out = _survey_frames(frames, ground, description)
-    return GroundChoice(ground=ground, frames=frames.select(keep), description=description, left_out=left_out)
+    # GPS altitudes over flat ground only: over a DEM a terrain-following flight's altitudes trend
+    # with the ground, and the heights above the DEM are judged as they are.
+    gps_over_flat = ref in (AltitudeReference.AMSL, AltitudeReference.ELLIPSOID) and dem is None
+    frames, warnings = _undrift(frames) if gps_over_flat else (frames, ())
+    keep, left_out = _survey_frames(frames, ground, description, drifting=bool(warnings))
+    return GroundChoice(
+        ground=ground,
+        frames=frames.select(keep),
+        description=description,
+        left_out=left_out,
+        warnings=warnings,
+    )
+
+
+def _undrift(frames: Frames) -> tuple[Frames, tuple[str, ...]]:
+    """Frames whose GPS altitudes (AMSL or ellipsoidal, over flat ground) trend by more than
+    ALTITUDE_DRIFT_M over the card (:func:`processing.survey_frames.altitude_trend`, and the plain
+    least-squares line over all of them agrees), with the trend removed, and the warning that says
+    so; the frames unchanged and no warning otherwise (and for a plan's stations)."""
+    from .survey_frames import ALTITUDE_DRIFT_M, DETRENDED_HEAD, altitude_trend
+
+    t = frames.time_utc_s
+    if (
+        t is None
+        or frames.attitude_source is AttitudeSource.PLAN
+        or frames.alt_reference not in (AltitudeReference.AMSL, AltitudeReference.ELLIPSOID)
+    ):
+        return frames, ()
+    trend = altitude_trend(frames.alt_m, t)
+    if trend is None or not abs(trend.drift_m) > ALTITUDE_DRIFT_M:
+        return frames, ()
+    # The plain least-squares line over every frame must say so too: a few minutes of frames and one
+    # frame long after them (a robust line through them extrapolates a minute's climb) do not drift.
+    plain = float(np.polyfit(t - trend.start_s, frames.alt_m, 1)[0]) * trend.span_s
+    if not (abs(plain) > ALTITUDE_DRIFT_M and plain * trend.drift_m > 0):
+        return frames, ()
+    warning = (
+        f"{DETRENDED_HEAD} {trend.drift_m:+.1f} m over the {trend.span_s / 60:.0f} min of the card "
+        "(least-squares line of altitude on time); the frames are judged on the detrended altitudes, "
+        "assuming the block was flown at one height, the GPS altitude of mid-flight, so heights and GSD "
+        "carry that altitude's error (the image scale measured from the pixels, when the frames are "
+        "matched, checks it); a relative (barometric) altitude settles it"
+    )
+    log.warning("%s", warning)
+    return replace(frames, alt_m=trend.detrended(frames.alt_m, t)), (warning,)
 
 
 def plan_dem_path(info: PlanInfo) -> Path | None:
@@ -269,10 +316,12 @@ def _dem_elevation_at_home(dem: Path, info: PlanInfo) -> float | None:
 
 
 def _survey_frames(
-    frames: Frames, ground: Ground, description: str
+    frames: Frames, ground: Ground, description: str, *, drifting: bool = False
 ) -> tuple[np.ndarray, tuple[tuple[str, str], ...]]:
     """The survey frames over ``ground`` (:mod:`processing.survey_frames`) and the others with
-    their reasons; GroundError when the ground itself must be wrong (most frames at or under it)."""
+    their reasons; GroundError when the ground itself must be wrong (most frames at or under it),
+    unless the altitudes were detrended (``drifting``: the drift, not the ground, is then what is
+    wrong, and the warning says so)."""
     from .survey_frames import select_survey_frames
 
     if len(frames) == 0:
@@ -288,10 +337,10 @@ def _survey_frames(
     )
     plan = frames.attitude_source is AttitudeSource.PLAN
     xy = None if plan else np.column_stack([x, y])
-    selection = select_survey_frames(height, xy, frame_length_m, alt_m=frames.alt_m)
+    selection = select_survey_frames(height, xy, frame_length_m, alt_m=frames.alt_m, time_s=frames.time_utc_s)
     if plan:  # every station of a plan is a survey frame; only the ground is judged
         selection = replace(selection, keep=np.ones(len(frames), dtype=bool), left_out=())
-    if selection.ground_suspect or not selection.keep.any():
+    if (selection.ground_suspect and not drifting) or not selection.keep.any():
         low = ~(height >= MIN_HEIGHT_AGL_M)
         k = int(np.argmin(height))
         raise GroundError(

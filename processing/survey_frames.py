@@ -12,6 +12,13 @@ heights above the ground chosen for the check (:mod:`processing.ground_choice`) 
   lower than :data:`LOW_RATIO` x the median height; a frame low over a hill at the survey
   altitude stays a survey frame, and so does a frame of a lower pass flown at a level of its
   own, :data:`LEVEL_BAND_M`);
+- an altitude more than :data:`CRUISE_SHARE` x the median height (and at least
+  :data:`ON_GROUND_M`) off the block's cruise altitude (the median altitude of the airborne
+  frames), and a height above ground as far off the median height, on no level of its own:
+  "climbing" or "descending" (by the altitude's change between the frames before and after it in
+  time), on the climb, the descent or between lines. Over a hill at the cruise altitude the
+  altitude stays; on a terrain-following block the height stays: both stay survey frames. With
+  drifting GPS altitudes the caller gives the altitudes detrended (:func:`altitude_trend`);
 - (images only, not a plan's stations) further from the nearest other frame than
   :data:`ISOLATED_RATIO` x the median nearest-frame distance and two frame lengths: in transit.
 
@@ -43,6 +50,11 @@ LEVEL_BAND_M = 2.0
 LEVEL_BAND_RATIO = 0.02
 LEVEL_MIN_FRAMES = 5
 LEVEL_MIN_SHARE = 0.05
+#: An airborne frame whose altitude departs from the cruise altitude (and whose height departs
+#: from the median height) by more than this share of the median height is climbing or descending:
+#: its GSD differs by as much from the block's, beyond the 10 % scale difference the stereo step
+#: flags between neighbours (processing.stereo.SCALE_TOLERANCE), and no survey line is flown there.
+CRUISE_SHARE = 0.1
 #: More than this share of the frames left out by height, or any frame more than ON_GROUND_M under
 #: the ground, means the ground is wrong (a card holds a few take-off and landing frames, not a
 #: third of its frames, and no camera flies under the ground).
@@ -85,6 +97,7 @@ def select_survey_frames(
     xy_m: NDArray[np.float64] | None = None,
     frame_length_m: float | None = None,
     alt_m: NDArray[np.float64] | None = None,
+    time_s: NDArray[np.float64] | None = None,
 ) -> SurveySelection:
     """Apply the module's rules. ``height_agl_m``: (N,) camera heights above the ground;
     ``xy_m``: (N, 2) camera positions in metres (None: no transit rule); ``frame_length_m``:
@@ -92,7 +105,8 @@ def select_survey_frames(
     ``alt_m``: (N,) camera altitudes in any one reference (None: the heights). The low-frame
     rule is on the altitude: a frame more than (1 - LOW_RATIO) x the median height below the
     block's median altitude is climbing or descending, while a frame low over a hill at the
-    survey altitude is a survey frame (its finer GSD and lower overlap are real)."""
+    survey altitude is a survey frame (its finer GSD and lower overlap are real). ``time_s``: (N,)
+    capture times (None: the frames' order), for telling a climb from a descent."""
     h = np.asarray(height_agl_m, dtype=np.float64)
     alt = h if alt_m is None else np.asarray(alt_m, dtype=np.float64)
     n = h.size
@@ -104,6 +118,18 @@ def select_survey_frames(
     band = max(LEVEL_BAND_M, LEVEL_BAND_RATIO * median)
     peers = max(LEVEL_MIN_FRAMES, math.ceil(LEVEL_MIN_SHARE * n))
     on_a_level = (_within(alt, band) >= peers) | (_within(h, band) >= peers)
+    # In time order: a frame whose altitude is higher after it than before it is climbing.
+    when = np.arange(n, dtype=np.float64) if time_s is None else np.asarray(time_s, dtype=np.float64)
+    order = np.argsort(when, kind="stable")
+    rank = np.empty(n, dtype=np.intp)
+    rank[order] = np.arange(n)
+    timed_alt = alt[order]
+
+    def way(j: int) -> str:
+        place = int(rank[j])
+        rising = timed_alt[min(place + 1, n - 1)] - timed_alt[max(place - 1, 0)] > 0
+        return "climbing" if rising else "descending"
+
     for k in range(n):
         if not airborne[k]:
             keep[k] = False
@@ -113,13 +139,26 @@ def select_survey_frames(
             reasons.append(
                 (
                     k,
-                    f"below the survey height: {h[k]:.1f} m above the ground, {median_alt - alt[k]:.1f} m "
-                    f"under the block's median altitude (median height {median:.1f} m): climbing, "
-                    "descending or in transit",
+                    f"{way(k)}: {h[k]:.1f} m above the ground, {median_alt - alt[k]:.1f} m under the "
+                    f"block's median altitude (median height {median:.1f} m): below the survey height "
+                    "(or in transit)",
                 )
             )
     by_height = int((~keep).sum())
     suspect = n > 0 and (by_height > n * SUSPECT_SHARE or bool((h < -ON_GROUND_M).any()))
+    # Climbing and descending: off the cruise altitude and off the median height (a wrong ground
+    # shifts every height alike, so these do not make the ground suspect).
+    off = max(CRUISE_SHARE * median, ON_GROUND_M)
+    departs = keep & (np.abs(alt - median_alt) > off) & (np.abs(h - median) > off) & ~on_a_level
+    for j in np.flatnonzero(departs).tolist():
+        keep[j] = False
+        reasons.append(
+            (
+                j,
+                f"{way(j)}: {h[j]:.1f} m above the ground, {alt[j] - median_alt:+.1f} m off the block's "
+                f"cruise altitude (median height {median:.1f} m)",
+            )
+        )
     if xy_m is not None and keep.sum() >= 3:
         rows = np.flatnonzero(keep)
         pts = np.asarray(xy_m, dtype=np.float64)[rows]
@@ -137,6 +176,65 @@ def select_survey_frames(
 
 #: A camera altitude that trends by more than this over a flight is reported, metres.
 ALTITUDE_DRIFT_M = 10.0
+#: How the warning of altitudes detrended by the ground choice begins (the check's pixel step
+#: then blames a scale that disagrees on the heights, not the camera).
+DETRENDED_HEAD = "the heights above ground are unreliable: the GPS altitude drifts by"
+
+
+@dataclass(frozen=True, kw_only=True)
+class AltitudeTrend:
+    """The least-squares line of altitude on time: ``slope_m_per_s`` over the ``span_s`` of the
+    frames from ``start_s`` (the first frame's time); ``drift_m``: its change over the span."""
+
+    slope_m_per_s: float
+    start_s: float
+    span_s: float
+
+    @property
+    def drift_m(self) -> float:
+        return self.slope_m_per_s * self.span_s
+
+    def detrended(self, alt_m: NDArray[np.float64], time_s: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The altitudes with the line removed about mid-flight: what they would be if the block
+        was flown at one height, the GPS altitude of mid-flight (a drift moves the early frames one
+        way and the late ones the other; mid-flight, the median height stays what the tags say)."""
+        mid_s = self.start_s + self.span_s / 2.0
+        return np.asarray(alt_m, dtype=np.float64) - self.slope_m_per_s * (np.asarray(time_s) - mid_s)
+
+
+def altitude_trend(alt_m: NDArray[np.float64], time_s: NDArray[np.float64] | None) -> AltitudeTrend | None:
+    """The trend of altitude on time over a card's frames, robust to its take-off, climb and
+    descent: first the median of the slopes between each frame of the first half of the flight (in
+    time) and its partner half a card later (a take-off or a climb pairs with cruise frames, a
+    minority of the slopes); then a least-squares line through the frames within 3 robust
+    deviations (at least :data:`ON_GROUND_M`) of that line. None without times or with fewer
+    than 3 frames."""
+    if time_s is None or alt_m.size < 3:
+        return None
+    t = np.asarray(time_s, dtype=np.float64)
+    a = np.asarray(alt_m, dtype=np.float64)
+    good = np.isfinite(t) & np.isfinite(a)
+    if good.sum() < 3:
+        return None
+    order = np.argsort(t[good], kind="stable")
+    t, a = t[good][order], a[good][order]
+    start = float(t[0])
+    span_s = float(t[-1] - start)
+    if not span_s > 0:
+        return None
+    half = t.size // 2
+    dt = t[half : 2 * half] - t[:half]
+    apart = dt > 0
+    if not apart.any():
+        return None
+    slope = float(np.median((a[half : 2 * half] - a[:half])[apart] / dt[apart]))
+    resid = a - slope * (t - start)
+    centre = float(np.median(resid))
+    spread = max(3.0 * 1.4826 * float(np.median(np.abs(resid - centre))), ON_GROUND_M)
+    near = np.abs(resid - centre) <= spread
+    if near.sum() >= 3 and float(np.ptp(t[near])) > 0:
+        slope = float(np.polyfit(t[near] - start, a[near], 1)[0])
+    return AltitudeTrend(slope_m_per_s=float(slope), start_s=start, span_s=span_s)
 
 
 def altitude_drift_warning(

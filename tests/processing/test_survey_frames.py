@@ -8,6 +8,7 @@ import pytest
 
 from processing.survey_frames import (
     ALTITUDE_DRIFT_M,
+    CRUISE_SHARE,
     ISOLATED_RATIO,
     LOW_RATIO,
     ON_GROUND_M,
@@ -38,7 +39,20 @@ def test_on_the_ground(height: float, ground: bool) -> None:
 def test_below_the_survey_height(factor: float, low: bool) -> None:
     h = np.array([80.0 * factor, *([80.0] * 20)])
     sel = select_survey_frames(h)
-    assert (not sel.keep[0]) is low
+    # Below or not, a frame at half the height is off the cruise (CRUISE_SHARE): left out either way.
+    assert not sel.keep[0]
+    assert ("below the survey height" in sel.left_out[0][1]) is low
+
+
+@pytest.mark.parametrize(
+    ("factor", "off"),
+    [(1 - CRUISE_SHARE - EPS, True), (1 - CRUISE_SHARE + EPS, False), (1 + CRUISE_SHARE + EPS, True)],
+)
+def test_off_the_cruise_height(factor: float, off: bool) -> None:
+    h = np.array([80.0 * factor, *([80.0] * 20)])
+    sel = select_survey_frames(h)
+    assert (not sel.keep[0]) is off
+    assert not off or sel.left_out[0][1].startswith(("climbing: ", "descending: "))
 
 
 @pytest.mark.parametrize(("count", "suspect"), [(7, False), (8, True)])
