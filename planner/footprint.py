@@ -121,20 +121,7 @@ def pixel_gsd_cm(camera: Camera, height_m: float, tilt_deg: float, x_mm: float, 
     """GSD (cm) of the pixel at sensor position (x_mm right, y_mm down from the centre) on flat
     ground: the ground length of one pixel step along the image's x and y, the coarser of the two
     (cast rays through the pixel's edges)."""
-    rotation = camera_axes(0.0, tilt_deg)[0]
-    px, py, f = camera.pixel_pitch_x_mm, camera.pixel_pitch_y_mm, camera.focal_length_mm
-
-    def ground(xs: float, ys: float) -> NDArray[np.float64]:
-        ray = rotation @ np.array([xs, ys, f])
-        if -ray[2] <= 1e-12 * f:
-            raise SpecError(
-                f"tilt {tilt_deg:.1f} deg looks at or above the horizon at the frame's edge; lower tilt_deg"
-            )
-        return np.asarray(ray[:2] * height_m / -ray[2], float)
-
-    step_x = np.linalg.norm(ground(x_mm + px / 2, y_mm) - ground(x_mm - px / 2, y_mm))
-    step_y = np.linalg.norm(ground(x_mm, y_mm + py / 2) - ground(x_mm, y_mm - py / 2))
-    return 100.0 * float(max(step_x, step_y))
+    return max(pixel_steps_cm(camera, height_m, tilt_deg, x_mm, y_mm))
 
 
 def motion_gsd_cm(
