@@ -13,6 +13,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .plan import FlightPass, PassKind, SurveyPlan
+from .stats import median
 
 #: Stations drawn as dots at most (every k-th beyond).
 DEFAULT_MAX_STATIONS = 10_000
@@ -301,10 +302,10 @@ def simplification(plan: SurveyPlan, frame: MapFrame, footprint_step: int = 1) -
         return Simplification(True, True, ())
     ppm = frame.points_per_m
     triggers = [p.trigger_distance_m for p in plan.passes if p.lines]
-    trigger_m = float(np.median(triggers)) if triggers else 0.0
+    trigger_m = median(triggers) if triggers else 0.0
     footprints = n <= MAX_VISIBLE_FOOTPRINTS and dots_visible(trigger_m * max(footprint_step, 1), ppm)
     steps = np.hypot(np.diff(st.x_m), np.diff(st.y_m)) if n > 1 else np.zeros(0)
-    spacing_m = float(np.median(steps[steps > 0])) if np.any(steps > 0) else math.inf
+    spacing_m = median(steps[steps > 0]) if np.any(steps > 0) else math.inf
     area_in2 = max(plan.area_xy.area * (ppm / 72.0) ** 2, 1e-9)
     crowded = n > MAX_STATIONS_PER_IN2 * area_in2
     stations = dots_visible(spacing_m, ppm) and not crowded

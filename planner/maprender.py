@@ -71,6 +71,21 @@ def _font(size_px: int, bold: bool = False) -> ImageFont.FreeTypeFont | ImageFon
     return ImageFont.load_default(size=size_px)  # Pillow's own scalable font
 
 
+#: The text sizes (points) and weights the map is written in (:func:`draw_map`).
+_TEXT_SIZES = ((14.0, True), (13.0, True), (10.0, False), (9.0, False), (8.0, False))
+
+
+def prepare(dpi: int = 130) -> None:
+    """Load what :func:`draw_map` and the PNG writer need and would load on first use: Pillow's
+    file formats (``Image.preinit``: PNG among them) and the fonts of a map of ``dpi``. For a
+    helper that gets ready while the plan is still being made (planner.aside)."""
+    Image.preinit()
+    px_per_pt = dpi * _SUPERSAMPLE / 72.0
+    for size_pt, bold in _TEXT_SIZES:
+        _font(round(size_pt * px_per_pt), bold)
+    _font(round(10.0 * px_per_pt))  # the y axis label's (its own cache entry)
+
+
 def _nice_ticks(low: float, high: float, max_ticks: int = 9) -> list[float]:
     """Round tick positions in [low, high]: steps of 1, 2, 2.5 or 5 x 10^n, at most max_ticks."""
     span = high - low

@@ -33,6 +33,7 @@ import numpy as np
 from numpy.typing import NDArray
 from shapely.geometry import MultiPolygon, Polygon, shape
 
+from .aside import Helper, start_aside
 from .camera import Orientation
 from .errors import PlanFolderError
 from .mission import HomePosition
@@ -238,15 +239,22 @@ def output_files(plan: SurveyPlan) -> tuple[str, ...]:
     return names if dem is None else (*names, dem)
 
 
-def write_outputs(
-    plan: SurveyPlan,
-    out_dir: str | os.PathLike[str],
-    *,
-    overwrite: bool = False,
-    progress: Callable[[int], None] | None = None,
-) -> list[Path]:
-    """Write every output file; on any failure nothing is left behind and ``out_dir`` is
-    unchanged. ``progress(1)`` is called after each file."""
+def _write_map(plan: SurveyPlan, path: Path) -> None:
+    from .mapplot import render_map_png  # Pillow with it: imported where the map is drawn
+
+    render_map_png(plan, path)
+
+
+def prepare_map() -> None:
+    """What drawing map.png needs, loaded before the plan exists (a :class:`planner.aside.Helper`
+    warms up with it while the plan is made)."""
+    from .maprender import prepare
+
+    prepare()
+
+
+def _writers(plan: SurveyPlan) -> dict[str, Callable[[Path], object]]:
+    """The writer of each file of :func:`output_files` but map.png, by name."""
     from .formats.geojson import (
         write_area_geojson,
         write_flight_lines_geojson,
@@ -256,7 +264,6 @@ def write_outputs(
     from .formats.kml import write_kml
     from .formats.qgc_plan import write_plan
     from .formats.waypoints import write_waypoints
-    from .mapplot import render_map_png
 
     writers: dict[str, Callable[[Path], object]] = {
         "mission.plan": lambda p: write_plan(plan.mission, p),
@@ -266,7 +273,6 @@ def write_outputs(
         "footprints.geojson": lambda p: write_footprints_geojson(plan, p),
         AREA_FILE: lambda p: write_area_geojson(plan, p),
         "mission.kml": lambda p: write_kml(plan, p),
-        "map.png": lambda p: render_map_png(plan, p),
         SUMMARY_FILE: lambda p: atomic_write_text(p, summary_json(plan)),
     }
     if len(plan.stations) > GPKG_ABOVE_PHOTOS:
@@ -278,14 +284,48 @@ def write_outputs(
         assert plan.layout is not None and plan.layout.dem is not None
         dem = plan.layout.dem
         writers[dem_name] = lambda p: dem.write_geotiff(p)
+    return writers
+
+
+def write_outputs(
+    plan: SurveyPlan,
+    out_dir: str | os.PathLike[str],
+    *,
+    overwrite: bool = False,
+    progress: Callable[[int], None] | None = None,
+    helper: Helper | None = None,
+) -> list[Path]:
+    """Write every output file; on any failure nothing is left behind and ``out_dir`` is
+    unchanged. ``progress(1)`` is called after each file.
+
+    map.png, a third of a small plan's time, is drawn aside (planner.aside: in a child process
+    on the other core, where that is safe) from the moment the staging folder exists, while the
+    other files are written here; it is waited for before the folder is moved into place. A
+    ``helper`` (started with :func:`prepare_map` before the plan was made) draws it instead, with
+    Pillow and the fonts already loaded."""
     names = output_files(plan)
     final = Path(out_dir)
     with staged_output_dir(final, overwrite=overwrite) as staging:
-        for name in names:
-            log.debug("writing %s", name)
-            writers[name](staging / name)
-            if progress is not None:
-                progress(1)
+        map_path, what = staging / "map.png", str(final / "map.png")
+        if helper is not None:
+            map_png = helper.submit(_write_map, plan, map_path, what=what)
+        else:
+            map_png = start_aside(lambda: _write_map(plan, map_path), what)
+        try:
+            writers = _writers(plan)
+            for name in names:
+                if name == "map.png":
+                    continue
+                log.debug("writing %s", name)
+                writers[name](staging / name)
+                if progress is not None:
+                    progress(1)
+            map_png.wait()
+        except BaseException:
+            map_png.cancel()
+            raise
+        if progress is not None:
+            progress(1)
     return [final / name for name in names]
 
 

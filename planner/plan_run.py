@@ -17,6 +17,7 @@ from .plan import SurveyPlan
 from .spec import MissionSpec
 
 if TYPE_CHECKING:  # planner.sorties is imported only for a vehicle with an endurance
+    from .aside import Helper
     from .sorties import Sortie
 
 
@@ -43,9 +44,12 @@ class PlanRun:
         *,
         overwrite: bool = False,
         progress: Callable[[int], None] | None = None,
+        helper: Helper | None = None,
     ) -> list[Path]:
         """Every file of the plan (and of each sortie, in sortie-NN/) into ``out_dir``, all or
-        nothing; ``progress(1)`` after each file."""
+        nothing; ``progress(1)`` after each file. ``helper``: a :class:`planner.aside.Helper`
+        warmed with :func:`planner.plan_folder.prepare_map`, to draw map.png (a plan without
+        sorties)."""
         if self.sorties:
             from .sorties import write_with_sorties
 
@@ -54,7 +58,7 @@ class PlanRun:
             )
         from .plan_folder import write_outputs
 
-        return write_outputs(self.plan, out_dir, overwrite=overwrite, progress=progress)
+        return write_outputs(self.plan, out_dir, overwrite=overwrite, progress=progress, helper=helper)
 
     def summary(self) -> dict[str, object]:
         """summary.json's figures, with the sorties and the station resumed from."""

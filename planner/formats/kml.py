@@ -40,6 +40,7 @@ from ..errors import InputError
 from ..mission import MavCmd, MavFrame
 from ..outputs import atomic_write_bytes
 from ..plan import PassKind, SurveyPlan
+from ..stats import median
 
 log = logging.getLogger(__name__)
 
@@ -236,7 +237,7 @@ def mission_track(
         points.append((lon, lat, alt))
     if len(points) < 3 and len(plan.path_lonlat_deg) >= 2:
         # a mission without positional items: fall back on the planned path at survey height
-        alt = float(np.median(plan.stations.alt_rel_home_m)) if len(plan.stations) else 0.0
+        alt = median(plan.stations.alt_rel_home_m) if len(plan.stations) else 0.0
         points = [(float(lon), float(lat), alt) for lon, lat in plan.path_lonlat_deg]
     return points, terrain
 

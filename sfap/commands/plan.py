@@ -7,7 +7,9 @@ from pathlib import Path
 
 import click
 
+from planner.aside import Helper
 from planner.estimate import ANNOUNCE_PHOTOS, MAX_PHOTOS, PlanEstimate
+from planner.plan_folder import prepare_map
 from planner.plan_run import PlanRun, plan_spec
 
 from ..common import dumps_json, echo_table, json_option, overwrite_option, progress, warnings_once
@@ -118,12 +120,15 @@ def command(
             if loud:
                 click.echo(f"  {time.monotonic() - started:6.1f} s  {what}", err=True)
 
-        run = plan_spec(
-            spec_file, resume_from=resume_from, resume_record=resume_record, max_photos=max_photos,
-            announce=announce, stage=stage,
-        )  # fmt: skip
-        with progress("writing", run.file_count, enabled=not no_progress and not as_json) as advance:
-            run.write(out_dir, overwrite=overwrite, progress=advance)
+        # map.png's helper process gets Pillow and the fonts ready on the other core while the
+        # plan is made, then draws the map while the other files are written (planner.aside).
+        with Helper(warm=prepare_map) as helper:
+            run = plan_spec(
+                spec_file, resume_from=resume_from, resume_record=resume_record, max_photos=max_photos,
+                announce=announce, stage=stage,
+            )  # fmt: skip
+            with progress("writing", run.file_count, enabled=not no_progress and not as_json) as advance:
+                run.write(out_dir, overwrite=overwrite, progress=advance, helper=helper)
         _present(run, out_dir, as_json)
         handled.update(run.plan.warnings)  # printed by _present, in the JSON, or left out on purpose
 

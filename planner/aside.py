@@ -1,0 +1,234 @@
+"""One piece of work done aside, on the machine's other core, while this process goes on.
+
+``sfap plan`` spends a third of a small plan drawing and encoding map.png, work that needs only
+the plan and ends in its own file. :func:`start_aside` runs such a job in a child forked from
+this process (it inherits the plan, the imports and the staging folder at no cost: the pages are
+shared until written) while the parent writes the other files; :meth:`Aside.wait` reaps it and
+raises the child's error, if any, in the parent, as if the job had run there. A thread would not
+do: drawing and encoding hold the interpreter lock (tried: no gain, BENCHMARKS.md).
+
+The child is forked only where that is safe and useful: on a POSIX system, in a process with one
+thread (a fork copies only the forking thread: a lock another thread held would stay locked in
+the child), on a machine with more than one core. Anywhere else the job runs in this process,
+at once, with the same result. The output is the job's own: the child shares nothing back but
+its error (pickled through a pipe) or its success.
+
+:class:`Helper` is the same child started earlier, before the job exists: it imports and loads
+what the job will need (``warm``: Pillow, its PNG writer and the map's fonts, 25-30 ms of a small
+plan) while this process is still planning, then waits for the job (a function and its arguments,
+pickled through a pipe: a small plan in about a millisecond) and runs it at once.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import os
+import pickle
+import signal
+import sys
+from collections.abc import Callable
+from typing import NoReturn
+
+log = logging.getLogger(__name__)
+
+
+def can_fork() -> bool:
+    """True when a child forked now would be safe and could run beside this process: fork exists,
+    this process has one thread (Python's or a library's: /proc/self/task) and the machine more
+    than one core available to it."""
+    if not hasattr(os, "fork") or not hasattr(os, "sched_getaffinity"):
+        return False
+    try:
+        if len(os.sched_getaffinity(0)) < 2 or len(os.listdir("/proc/self/task")) != 1:
+            return False
+    except OSError:
+        return False
+    return True
+
+
+class Aside:
+    """A job started by :func:`start_aside`: running in a child process (``pid``), or already done
+    in this one (``pid`` None; ``error`` what it raised)."""
+
+    def __init__(self, what: str, pid: int | None, read_fd: int | None, error: BaseException | None) -> None:
+        self.what = what
+        self.pid = pid
+        self._read_fd = read_fd
+        self._error = error
+
+    @property
+    def forked(self) -> bool:
+        """True when the job runs (or ran) in a child process."""
+        return self.pid is not None
+
+    def wait(self) -> None:
+        """Wait for the job to end; raise what it raised (in the child: the same exception,
+        unpickled; a child killed by a signal: an OSError naming the job and the signal)."""
+        if self.pid is None:
+            error, self._error = self._error, None
+            if error is not None:
+                raise error
+            return
+        assert self._read_fd is not None
+        with os.fdopen(self._read_fd, "rb") as pipe:
+            self._read_fd = None
+            report = pipe.read()
+        _, status = os.waitpid(self.pid, 0)
+        self.pid = None
+        if report:
+            raise _unpickled(report, self.what)
+        if os.WIFSIGNALED(status):
+            number = os.WTERMSIG(status)
+            raise OSError(f"{self.what}: the process writing it was ended by signal {number}")
+        code = os.waitstatus_to_exitcode(status)
+        if code != 0:
+            raise OSError(f"{self.what}: the process writing it failed (exit code {code})")
+
+    def cancel(self) -> None:
+        """Stop the job if it still runs (the caller failed: its result is not wanted)."""
+        if self.pid is not None:
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(self.pid, signal.SIGKILL)
+            os.waitpid(self.pid, 0)
+            self.pid = None
+        if self._read_fd is not None:
+            os.close(self._read_fd)
+            self._read_fd = None
+        self._error = None
+
+
+def _unpickled(report: bytes, what: str) -> BaseException:
+    try:
+        error = pickle.loads(report)
+    except Exception:  # an exception pickle cannot rebuild: its text
+        return OSError(f"{what}: {report.decode(errors='replace')}")
+    return error if isinstance(error, BaseException) else OSError(f"{what}: {error}")
+
+
+def start_aside(job: Callable[[], object], what: str) -> Aside:
+    """Start ``job()`` in a child process when :func:`can_fork`, else run it here at once.
+
+    ``what`` names the job in errors (the file it writes). The job must not need to tell this
+    process anything but that it failed: what it returns is dropped. Call :meth:`Aside.wait`
+    (or :meth:`Aside.cancel` on a failure of the caller) before using its result."""
+    if not can_fork():
+        try:
+            job()
+        except Exception as error:
+            return Aside(what, None, None, error)
+        return Aside(what, None, None, None)
+    _flush_std()
+    read_fd, write_fd = os.pipe()
+    pid = os.fork()
+    if pid == 0:
+        os.close(read_fd)
+        _report_and_exit(write_fd, job)
+    os.close(write_fd)
+    log.debug("%s: drawn aside by process %d", what, pid)
+    return Aside(what, pid, read_fd, None)
+
+
+def _report_and_exit(write_fd: int, run: Callable[[], object]) -> NoReturn:
+    """In a child: ``run()``, its error pickled into ``write_fd``, then out without cleaning up
+    (no atexit handlers, no flush of the parent's buffers, no finally block of the parent's)."""
+    status = 0
+    try:
+        try:
+            run()
+        except BaseException as error:  # every failure goes to the parent
+            status = 1
+            try:
+                report = pickle.dumps(error)
+            except Exception:
+                report = f"{type(error).__name__}: {error}".encode()
+            view = memoryview(report)
+            while view:  # the parent reads it all when it waits
+                view = view[os.write(write_fd, view) :]
+    finally:
+        os._exit(status)
+
+
+class Helper:
+    """A child process forked now that runs ``warm()`` at once, then one job sent later by
+    :meth:`submit`; where a fork is not safe (:func:`can_fork`), nothing is started and the job
+    runs in this process when submitted. :meth:`close` when no job will come (always safe)."""
+
+    def __init__(self, warm: Callable[[], object] | None = None) -> None:
+        self.pid: int | None = None
+        self._job_fd: int | None = None
+        self._report_fd: int | None = None
+        if not can_fork():
+            return
+        _flush_std()
+        job_read, job_write = os.pipe()
+        report_read, report_write = os.pipe()
+        pid = os.fork()
+        if pid == 0:
+            os.close(job_write)
+            os.close(report_read)
+            _report_and_exit(report_write, lambda: _serve(job_read, warm))
+        os.close(job_read)
+        os.close(report_write)
+        self.pid, self._job_fd, self._report_fd = pid, job_write, report_read
+
+    def submit(self, job: Callable[..., object], *args: object, what: str) -> Aside:
+        """``job(*args)`` in the helper (``job`` a module-level function: it is pickled by name;
+        the arguments by value); in this process when no helper runs or the job cannot be
+        pickled. ``what`` names the job in errors. Wait on the :class:`Aside` returned."""
+        data = None
+        if self.pid is not None:
+            try:
+                data = pickle.dumps((job, args), protocol=pickle.HIGHEST_PROTOCOL)
+            except Exception as error:  # an argument pickle cannot take: run here
+                log.debug("%s: not sent aside (%s)", what, error)
+        if data is None:
+            self.close()
+            return start_aside(lambda: job(*args), what)
+        assert self._job_fd is not None
+        with os.fdopen(self._job_fd, "wb") as pipe:  # closed: the job is whole
+            self._job_fd = None
+            pipe.write(data)
+        pid, self.pid = self.pid, None
+        report_fd, self._report_fd = self._report_fd, None
+        log.debug("%s: drawn aside by process %d", what, pid)
+        return Aside(what, pid, report_fd, None)
+
+    def close(self) -> None:
+        """No job will come (the caller failed, or will do without): the helper, which has
+        written nothing, is stopped at once. A job already submitted goes on (wait on it)."""
+        if self.pid is None:
+            return
+        with contextlib.suppress(ProcessLookupError):
+            os.kill(self.pid, signal.SIGKILL)
+        os.waitpid(self.pid, 0)
+        self.pid = None
+        for fd in (self._job_fd, self._report_fd):
+            if fd is not None:
+                os.close(fd)
+        self._job_fd = self._report_fd = None
+
+    def __enter__(self) -> Helper:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def _serve(job_fd: int, warm: Callable[[], object] | None) -> None:
+    """The helper's life: warm up, read one job (nothing: leave), run it."""
+    if warm is not None:
+        with contextlib.suppress(Exception):  # only a head start: the job says what fails
+            warm()
+    with os.fdopen(job_fd, "rb") as pipe:
+        data = pipe.read()
+    if not data:
+        return
+    job, args = pickle.loads(data)
+    job(*args)
+
+
+def _flush_std() -> None:
+    for stream in (sys.stdout, sys.stderr):  # nothing buffered written twice
+        with contextlib.suppress(AttributeError, OSError, ValueError):
+            stream.flush()
