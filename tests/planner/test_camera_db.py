@@ -485,3 +485,45 @@ def test_names_shown_to_people_never_double_the_make(camera_id: str) -> None:
     # The model string alone when it already starts with the make ("Canon PowerShot S110").
     if (camera.exif_model or "").casefold().startswith((camera.exif_make or "").casefold()):
         assert shown == camera.exif_model
+
+
+def test_get_camera_parses_one_entry_giving_the_camera_the_whole_database_gives() -> None:
+    """get_camera reads only the entry it is asked for (a small plan does not pay for parsing 80
+    others): for every id, the same Camera as the whole database parsed and checked, and in a
+    fresh process the whole database is not parsed for it."""
+    import subprocess
+    import sys
+
+    from planner import camera_db
+
+    whole = parse_cameras(camera_db._database_text())
+    for camera_id, camera in whole.items():
+        assert camera_db._entry_alone(camera_id) == camera, camera_id
+    assert camera_db._entry_alone("no-such-camera") is None
+    code = (
+        "from planner import camera_db; camera = camera_db.get_camera('dji-mini-4-pro'); "
+        "print(camera.id, camera_db._load_cameras.cache_info().currsize)"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert done.stdout.split() == ["dji-mini-4-pro", "0"]
+
+
+def test_an_entry_that_cannot_be_read_alone_is_judged_by_the_whole_database(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A duplicated id (two blocks name it) is not taken from either block: the whole database is
+    parsed and refuses it, as it refused it before."""
+    from planner import camera_db
+
+    text = camera_db._database_text()
+    block = text[text.index('[[camera]]\nid = "dji-mini-4-pro"') :]
+    block = block[: block.index("\n[[camera]]", 1) + 1]
+    monkeypatch.setattr(camera_db, "_database_text", lambda: text + "\n" + block)
+    camera_db._entry_alone.cache_clear()
+    camera_db._load_cameras.cache_clear()
+    try:
+        with pytest.raises(CameraError, match="'dji-mini-4-pro' appears twice"):
+            get_camera("dji-mini-4-pro")
+    finally:
+        camera_db._entry_alone.cache_clear()
+        camera_db._load_cameras.cache_clear()
