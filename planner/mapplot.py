@@ -372,10 +372,12 @@ def map_png_bytes(
     # small plan's planning and every other output together.
     rgb = draw_map(plan, max_footprints=max_footprints, max_stations=max_stations, dpi=dpi, sorties=sorties)
     # A map is a few flat colours and their anti-aliased edges: a 256-colour palette keeps
-    # them (no dithering) and encodes 3-4x faster and 4x smaller than 24-bit colour.
+    # them (no dithering) and encodes 3-4x faster and 4x smaller than 24-bit colour. zlib's
+    # fastest level: the same pixels as its default (6) in half the time or less (10-20 ms of a
+    # small plan's critical path), in a file about 1.5x larger (170 KB for the gully's map).
     image = rgb.quantize(colors=256, method=Image.Quantize.FASTOCTREE, dither=Image.Dither.NONE)
     buffer = io.BytesIO()
-    image.save(buffer, format="PNG", compress_level=6)
+    image.save(buffer, format="PNG", compress_level=1)
     return buffer.getvalue()
 
 
