@@ -189,7 +189,8 @@ from sfap.cli import cli
 cli.get_command(None, sys.argv[1])
 import gc
 import numpy
-print(os.environ.get("OPENBLAS_NUM_THREADS"), len(os.listdir("/proc/self/task")), gc.get_freeze_count())
+print(os.environ.get("OPENBLAS_NUM_THREADS"), len(os.listdir("/proc/self/task")), gc.get_freeze_count(),
+      gc.isenabled())
 """
 
 
@@ -222,5 +223,7 @@ def test_small_commands_load_openblas_with_one_thread(
     assert out[0] == str(expected)
     if expected == "1":
         assert out[1] == "1"
-    # The imports' objects are frozen out of the garbage collector's full collections.
+    # The imports' objects are frozen out of the garbage collector's full collections, and the
+    # collector, off while the command's modules were imported, runs again.
     assert int(out[2]) > 10_000
+    assert out[3] == "True"
