@@ -19,8 +19,8 @@ altitudes place it, to their own accuracy), and the script says so.
 so a second run skips the extraction.
 
 Run: nice .venv/bin/python benchmarks/matching_seneca.py [IMAGES] [--ground-elevation-m M]
-     [--max-image-size-px 1000] [--max-features 2000] [--sift-first-octave -1] [--matchers position,footprint,spatial,exhaustive]
-     [--features-db /tmp/seneca_features.db]
+     [--max-image-size-px 1000] [--max-features 2000] [--sift-first-octave -1]
+     [--matchers position,footprint,spatial,exhaustive] [--features-db /tmp/seneca_features.db]
 """
 
 from __future__ import annotations
