@@ -19,8 +19,8 @@ altitudes place it, to their own accuracy), and the script says so.
 so a second run skips the extraction.
 
 Run: nice .venv/bin/python benchmarks/matching_seneca.py [IMAGES] [--ground-elevation-m M]
-     [--max-image-size-px 1000] [--max-features 2000] [--matchers position,footprint,spatial,exhaustive]
-     [--features-db /tmp/seneca_features.db]
+     [--max-image-size-px 1000] [--max-features 2000] [--sift-first-octave -1]
+     [--matchers position,footprint,spatial,exhaustive] [--features-db /tmp/seneca_features.db]
 """
 
 from __future__ import annotations
@@ -72,6 +72,9 @@ def main() -> None:
     parser.add_argument("--ground-elevation-m", type=float, default=None)
     parser.add_argument("--max-image-size-px", type=int, default=1000)
     parser.add_argument("--max-features", type=int, default=2000)
+    parser.add_argument(
+        "--sift-first-octave", type=int, choices=(-1, 0), default=-1, help="-1 doubles the frames first"
+    )
     parser.add_argument("--matchers", default="position,footprint,spatial,exhaustive")
     parser.add_argument("--features-db", type=Path, default=None)
     args = parser.parse_args()
@@ -98,9 +101,11 @@ def main() -> None:
                 block.names,
                 max_image_size_px=args.max_image_size_px,
                 max_features=args.max_features,
+                first_octave=args.sift_first_octave,
             )
             print(
-                f"features at {args.max_image_size_px} px, {args.max_features} per frame: "
+                f"features at {args.max_image_size_px} px, {args.max_features} per frame, first octave "
+                f"{args.sift_first_octave}: "
                 f"{time.perf_counter() - t:.1f} s wall, {_cpu_s() - c:.1f} s CPU (load {_load()})",
                 flush=True,
             )

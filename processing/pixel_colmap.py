@@ -2,10 +2,10 @@
 downscaled frames and verified matches between given pairs of them, returned as plain arrays.
 
 :mod:`processing.pixel_match` turns the matches into overlaps, image scale and the share of
-neighbours that match. The hand-off's reconstruction has its own adapter
-(:mod:`processing.handoff.colmap_adapter`); this one only extracts and matches, in a temporary
-database, with COLMAP's log (glog, written by the C++ library to the process's standard error)
-sent to a log file instead of the terminal.
+neighbours that match. This module extracts and matches, in a temporary database, with COLMAP's
+log (glog, written by the C++ library to the process's standard error) sent to a log file instead
+of the terminal; the quick reconstruction runs the hand-off's mapper
+(:func:`processing.handoff.colmap_adapter.incremental_mapping`), the one mapping code of both.
 """
 
 from __future__ import annotations
@@ -184,21 +184,16 @@ def _write_priors(
 def _map(
     database: Path, image_dir: Path, output_dir: Path, num_threads: int, *, use_priors: bool
 ) -> tuple[frozenset[str], ...]:
-    """COLMAP's incremental mapper on the matches in ``database`` (models of 3 frames or more, the
+    """COLMAP's incremental mapper on the matches in ``database`` (the hand-off's
+    :func:`processing.handoff.colmap_adapter.incremental_mapping`: models of 3 frames or more, the
     random seed fixed): the frames of each model, largest first."""
-    import pycolmap
+    from .handoff.colmap_adapter import incremental_mapping
+    from .handoff.errors import HandoffError
 
-    output_dir.mkdir(parents=True, exist_ok=True)
-    options = pycolmap.IncrementalPipelineOptions()
-    options.min_model_size = 3
-    options.num_threads = num_threads
-    options.random_seed = 1
-    if use_priors:
-        options.use_prior_position = True
-        options.use_robust_loss_on_prior_position = True
     try:
-        result = pycolmap.incremental_mapping(str(database), str(image_dir), str(output_dir), options=options)
-    except RuntimeError as error:
-        raise ProcessingError(f"COLMAP's mapper failed on the matched frames: {error}") from error
-    models = [frozenset(rec.image(i).name for i in rec.reg_image_ids()) for rec in result.values()]
-    return tuple(sorted(models, key=len, reverse=True))
+        models = incremental_mapping(
+            database, image_dir, output_dir, min_model_size=3, use_priors=use_priors, num_threads=num_threads
+        )
+    except HandoffError as error:
+        raise ProcessingError(f"COLMAP's mapper failed on the matched frames: {error.__cause__}") from error
+    return tuple(frozenset(model.registered) for model in models)

@@ -68,6 +68,9 @@ MIN_MATCH_SIZE_PX = 256
 #: Frames with fewer SIFT features than this (median) carry no texture to judge by: the verdict
 #: then rests on the tags alone, and the report says so.
 MIN_KEYPOINTS = 100
+#: The quick reconstruction's budget: pairs a frame is matched in at most (the neighbour pairs
+#: are always matched; BENCHMARKS.md measures the cap on seneca_half and garfield_rgb).
+MAX_MAPPER_PAIRS_PER_FRAME = 8
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -82,6 +85,7 @@ class PixelOptions:
     num_threads: int = 0
     log_path: Path | None = None
     reconstruct: bool = True
+    max_pairs_per_frame: int = MAX_MAPPER_PAIRS_PER_FRAME
 
     def __post_init__(self) -> None:
         if not (64 <= self.max_image_size_px <= 8192):
@@ -90,6 +94,8 @@ class PixelOptions:
             )
         if not (100 <= self.max_features <= 100_000):
             raise ProcessingError(f"max_features = {self.max_features} is outside 100-100000")
+        if self.max_pairs_per_frame < 1:
+            raise ProcessingError(f"max_pairs_per_frame = {self.max_pairs_per_frame}: give at least 1")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -101,7 +107,8 @@ class PixelFigures:
     pair; ``matched``: at least :data:`MIN_INLIERS`; ``overlap_pct``: per pair, NaN where it did
     not match; ``gsd_cm``: per along-line pair with a usable baseline, NaN elsewhere;
     ``component``: per frame, the connected part of the matched graph it belongs to (0 the
-    largest); ``seconds``: how long the matching took.
+    largest); ``seconds``: how long the matching took; ``mapper_pair_count``: the pairs matched
+    for the quick reconstruction, the neighbour pairs included (:func:`budget_pairs`).
     """
 
     pair_index: NDArray[np.int64]
@@ -120,6 +127,7 @@ class PixelFigures:
     min_inliers: int = MIN_INLIERS
     models: tuple[tuple[int, ...], ...] | None = None
     keypoints_median: float = 0.0
+    mapper_pair_count: int = 0
 
     @property
     def conclusive(self) -> bool:
@@ -223,6 +231,7 @@ class PixelFigures:
             "scale_ratio_measured_to_tagged": self.scale_ratio,
             "quick_reconstruction": (
                 {
+                    "pairs_matched": self.mapper_pair_count,
                     "models": [len(m) for m in self.models],
                     "largest_model_frames_pct": self.registered_pct,
                     "frames_registered": self.registered_any,
@@ -303,23 +312,29 @@ def measure_pixels(
     frames of a line) in ``options.image_dir`` and measure them (module docstring).
     ``camera_xyz_m``: the frames' positions in metres (the check's local frame), for the GPS
     baselines and the quick reconstruction's pose priors; ``tagged_gsd_cm``: the block's median
-    GSD from the tags, to compare; ``mapper_pairs``: more pairs to match for the quick
-    reconstruction only (every pair whose footprints overlap, as the hand-off matches: neighbour
-    pairs alone leave too few points seen three times for the mapper)."""
+    GSD from the tags, to compare; ``mapper_pairs``: the pairs the quick reconstruction may match
+    besides the neighbour pairs (every pair whose footprints overlap), of which it matches those
+    :func:`budget_pairs` chooses (``options.max_pairs_per_frame``: neighbour pairs alone leave
+    too few points seen three times for the mapper)."""
     from .pixel_colmap import match_pairs
 
     start = time.monotonic()
     names = list(frames.name)
     pairs = [(names[int(i)], names[int(j)]) for i, j in pair_index.tolist()]
     asked = set(pairs) | {(b, a) for a, b in pairs}
+    for_mapper = (
+        budget_pairs(
+            pair_index, pair_along, mapper_pairs, camera_xyz_m, max_per_frame=options.max_pairs_per_frame
+        )
+        if options.reconstruct
+        else np.zeros((0, 2), dtype=np.int64)
+    )
     extra = [
         (names[int(i)], names[int(j)])
-        for i, j in (mapper_pairs.tolist() if mapper_pairs is not None and options.reconstruct else [])
+        for i, j in for_mapper.tolist()
         if (names[int(i)], names[int(j)]) not in asked
     ]
-    every = np.concatenate(
-        [pair_index.ravel(), mapper_pairs.ravel() if extra and mapper_pairs is not None else []]
-    )
+    every = np.concatenate([pair_index.ravel(), for_mapper.ravel()])
     used = sorted({int(k) for k in every})
     threads = options.num_threads or min(os.cpu_count() or 1, 4)
     run = match_pairs(
@@ -379,6 +394,7 @@ def measure_pixels(
         else None
     )
     return PixelFigures(
+        mapper_pair_count=len(for_mapper),
         keypoints_median=float(np.median(list(run.keypoints.values()))) if run.keypoints else 0.0,
         models=models,
         pair_index=np.asarray(pair_index, dtype=np.int64).reshape(m, 2),
@@ -408,6 +424,64 @@ def neighbour_pairs(
     _, first = np.unique(index, axis=0, return_index=True)
     first.sort()
     return index[first].astype(np.int64).reshape(-1, 2), kind[first]
+
+
+def budget_pairs(
+    pair_index: NDArray[np.int64],
+    pair_along: NDArray[np.bool_],
+    candidates: NDArray[np.int64] | None,
+    camera_xyz_m: F64,
+    *,
+    max_per_frame: int = MAX_MAPPER_PAIRS_PER_FRAME,
+) -> NDArray[np.int64]:
+    """The pairs the quick reconstruction matches, within a budget of ``max_per_frame`` pairs a
+    frame: the neighbour pairs ``pair_index`` (``pair_along``: consecutive frames of a line; the
+    others a frame and the nearest frame of a neighbouring line), always; then a frame with the
+    consecutive frames of its nearest frame on a neighbouring line (triangles across the lines:
+    the points seen in three frames or more that the mapper needs, which a low endlap leaves
+    along a line alone); then a frame with the second frame along its line. Each kind is taken
+    shortest GPS baseline first, a pair only while neither frame has ``max_per_frame`` pairs, and,
+    when ``candidates`` is given (the pairs whose tagged footprints overlap), only among them.
+    Rows (i < j), the neighbour pairs first."""
+    pair_index = np.asarray(pair_index, dtype=np.int64).reshape(-1, 2)
+    along = np.asarray(pair_along, dtype=bool)
+    n = int(max(pair_index.max(initial=-1), candidates.max(initial=-1) if candidates is not None else -1)) + 1
+    along_of: list[list[int]] = [[] for _ in range(n)]
+    for i, j in pair_index[along].tolist():
+        along_of[i].append(j)
+        along_of[j].append(i)
+    chosen: dict[tuple[int, int], None] = {}
+    degree = np.zeros(n, dtype=np.int64)
+    for i, j in pair_index.tolist():
+        key = (min(i, j), max(i, j))
+        if key not in chosen:
+            chosen[key] = None
+            degree[list(key)] += 1
+    allowed = (
+        {(min(a, b), max(a, b)) for a, b in np.asarray(candidates, dtype=np.int64).reshape(-1, 2).tolist()}
+        if candidates is not None
+        else None
+    )
+    triangles: set[tuple[int, int]] = set()
+    for i, j in pair_index[~along].tolist():
+        for a, b in ((i, j), (j, i)):
+            triangles.update((min(a, k), max(a, k)) for k in along_of[b] if k != a)
+    second: set[tuple[int, int]] = set()
+    for b in range(n):
+        for a in along_of[b]:
+            second.update((min(a, c), max(a, c)) for c in along_of[b] if c != a)
+
+    def base(key: tuple[int, int]) -> float:
+        return float(np.hypot(*(camera_xyz_m[key[0], :2] - camera_xyz_m[key[1], :2])))
+
+    for kind in (triangles, second):
+        for key in sorted(kind - chosen.keys(), key=lambda k: (base(k), k)):
+            if allowed is not None and key not in allowed:
+                continue
+            if degree[key[0]] < max_per_frame and degree[key[1]] < max_per_frame:
+                chosen[key] = None
+                degree[list(key)] += 1
+    return np.array(list(chosen), dtype=np.int64).reshape(-1, 2)
 
 
 def scale_words(figures: PixelFigures, *, camera_rough: bool, heights_drift: bool) -> str | None:
@@ -472,7 +546,8 @@ def describe(figures: PixelFigures) -> list[tuple[str, str]]:
                     f"{len(sizes)} model(s) of {', '.join(map(str, sizes[:6]))}"
                     f"{' ...' if len(sizes) > 6 else ''} "
                     f"frames; the largest registers {figures.registered_pct:.0f} % of the "
-                    f"{figures.frame_count} frames (COLMAP's mapper on these matches)"
+                    f"{figures.frame_count} frames (COLMAP's mapper on {figures.mapper_pair_count} pairs, "
+                    f"at most {MAX_MAPPER_PAIRS_PER_FRAME} a frame beyond the neighbour pairs)"
                 )
                 if sizes
                 else "no model: COLMAP's mapper found no pair of frames to start from "
@@ -512,6 +587,7 @@ __all__ = [
     "PixelFigures",
     "PixelOptions",
     "affine_fit",
+    "budget_pairs",
     "components",
     "describe",
     "mapped_overlap_pct",

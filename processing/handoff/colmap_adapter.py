@@ -26,6 +26,11 @@ log = logging.getLogger(__name__)
 F64 = NDArray[np.float64]
 
 
+def _threads() -> int:
+    """Threads for COLMAP's extraction, matching and mapping: every core, up to 4."""
+    return min(os.cpu_count() or 1, 4)
+
+
 def version() -> str:
     import pycolmap
 
@@ -97,15 +102,24 @@ def write_database(
 
 
 def extract_features(
-    database: Path, image_dir: Path, names: Sequence[str], *, max_image_size_px: int, max_features: int
+    database: Path,
+    image_dir: Path,
+    names: Sequence[str],
+    *,
+    max_image_size_px: int,
+    max_features: int,
+    first_octave: int = -1,
 ) -> None:
     """SIFT on frames downscaled so their longer side is at most ``max_image_size_px`` (keypoints
-    are written in full-resolution pixels)."""
+    are written in full-resolution pixels), on every core (up to 4). ``first_octave``: -1 (COLMAP's
+    default) doubles the frame before the first octave, for the finest features, at about three
+    times the time; 0 starts at the frame's own pixels."""
     import pycolmap
 
     options = pycolmap.FeatureExtractionOptions(max_image_size=max_image_size_px)
     options.sift.max_num_features = max_features
-    options.num_threads = min(os.cpu_count() or 1, 4)
+    options.sift.first_octave = first_octave
+    options.num_threads = _threads()
     pycolmap.extract_features(
         str(database), str(image_dir), list(names), extraction_options=options, device=pycolmap.Device.cpu
     )
@@ -119,11 +133,15 @@ def keypoint_counts(database: Path) -> dict[str, int]:
 
 
 def match_pairs_file(database: Path, pairs_file: Path) -> None:
-    """Match the pairs listed in ``pairs_file`` ("name1 name2" lines) and verify them."""
+    """Match the pairs listed in ``pairs_file`` ("name1 name2" lines) and verify them, on every
+    core (up to 4)."""
     import pycolmap
 
+    matching = pycolmap.FeatureMatchingOptions()
+    matching.num_threads = _threads()
     pycolmap.match_image_pairs(
         str(database),
+        matching_options=matching,
         pairing_options=pycolmap.ImportedPairingOptions(match_list_path=str(pairs_file)),
         device=pycolmap.Device.cpu,
     )
@@ -224,17 +242,26 @@ def _wrap(rec: Any) -> ColmapModel:
 
 
 def incremental_mapping(
-    database: Path, image_dir: Path, output_dir: Path, *, min_model_size: int = 3, use_priors: bool = False
+    database: Path,
+    image_dir: Path,
+    output_dir: Path,
+    *,
+    min_model_size: int = 3,
+    use_priors: bool = False,
+    num_threads: int | None = None,
 ) -> list[ColmapModel]:
-    """COLMAP's incremental mapper; the models it kept, largest first. ``use_priors``: the pose
-    priors constrain the bundle adjustment (robust loss), so a frame matched to the wrong place
-    cannot pull the model apart."""
+    """COLMAP's incremental mapper on the matches in ``database`` (the random seed fixed, models
+    of ``min_model_size`` frames or more); the models it kept, largest first. ``use_priors``: the
+    pose priors constrain the bundle adjustment (robust loss), so a frame matched to the wrong
+    place cannot pull the model apart. ``num_threads``: None for every core (up to 4). The one
+    mapping code of the hand-off's quick-look and the check's quick reconstruction
+    (:mod:`processing.pixel_colmap`). HandoffError when COLMAP fails."""
     import pycolmap
 
     output_dir.mkdir(parents=True, exist_ok=True)
     options = pycolmap.IncrementalPipelineOptions()
     options.min_model_size = min_model_size
-    options.num_threads = min(os.cpu_count() or 1, 4)
+    options.num_threads = num_threads if num_threads is not None else _threads()
     options.random_seed = 1
     if use_priors:
         options.use_prior_position = True
@@ -284,7 +311,7 @@ def global_mapping(
     output_dir.mkdir(parents=True, exist_ok=True)
     options = pycolmap.GlobalPipelineOptions()
     options.min_model_size = min_model_size
-    options.num_threads = min(os.cpu_count() or 1, 4)
+    options.num_threads = _threads()
     options.random_seed = 1
     try:
         result = pycolmap.global_mapping(str(database), str(image_dir), str(output_dir), options=options)

@@ -24,7 +24,15 @@ from ..gcp import GcpSet, read_gcp
 from .control import ControlPlan, check_distances, control_accuracy, validate_control
 from .errors import HandoffInputError
 from .prepare import GroundOptions, Prepared, prepare
-from .quicklook import DEFAULT_MAPPER, DEFAULT_MAX_FEATURES, DEFAULT_MAX_IMAGE_SIZE_PX, MAPPERS, QuickLook
+from .quicklook import (
+    DEFAULT_MAPPER,
+    DEFAULT_MAX_FEATURES,
+    DEFAULT_MAX_IMAGE_SIZE_PX,
+    DEFAULT_SIFT_FIRST_OCTAVE,
+    MAPPERS,
+    SIFT_FIRST_OCTAVES,
+    QuickLook,
+)
 
 log = logging.getLogger(__name__)
 
@@ -53,6 +61,7 @@ class HandoffOptions:
     max_image_size_px: int = DEFAULT_MAX_IMAGE_SIZE_PX
     max_features: int = DEFAULT_MAX_FEATURES
     mapper: str = DEFAULT_MAPPER
+    sift_first_octave: int = DEFAULT_SIFT_FIRST_OCTAVE
     overwrite: bool = False
     node_url: str | None = None
     token: str = ""
@@ -94,6 +103,11 @@ def handoff(
         raise HandoffInputError(f"--mapper {options.mapper!r}: choose {' or '.join(MAPPERS)}")
     if not (100 <= options.max_features <= 100000):
         raise HandoffInputError(f"--max-features {options.max_features} is outside 100..100000")
+    if options.sift_first_octave not in SIFT_FIRST_OCTAVES:
+        raise HandoffInputError(
+            f"--sift-first-octave {options.sift_first_octave}: choose "
+            + " or ".join(map(str, SIFT_FIRST_OCTAVES))
+        )
     if not (200 <= options.max_image_size_px <= 20000):
         raise HandoffInputError(f"--max-image-size-px {options.max_image_size_px} is outside 200..20000")
     address = None
@@ -140,6 +154,7 @@ def handoff(
                     max_image_size_px=options.max_image_size_px,
                     max_features=options.max_features,
                     mapper=options.mapper,
+                    sift_first_octave=options.sift_first_octave,
                     progress=say,
                 )
                 report["quicklook"] = quicklook_dict(quick)

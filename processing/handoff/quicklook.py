@@ -40,6 +40,10 @@ F64 = NDArray[np.float64]
 DEFAULT_MAX_IMAGE_SIZE_PX = 1000
 #: SIFT features per frame.
 DEFAULT_MAX_FEATURES = 2000
+#: SIFT's first octave: -1 doubles the frame first (finer features, about three times the time),
+#: 0 starts at the frame's own pixels (BENCHMARKS.md: the quick-look on seneca_half).
+SIFT_FIRST_OCTAVES = (-1, 0)
+DEFAULT_SIFT_FIRST_OCTAVE = -1
 #: COLMAP's mapper: "incremental" (with the pose priors) or "global" (GLOMAP).
 MAPPERS = ("incremental", "global")
 DEFAULT_MAPPER = "incremental"
@@ -120,6 +124,7 @@ class QuickLook:
     max_image_size_px: int
     max_features: int = DEFAULT_MAX_FEATURES
     mapper: str = DEFAULT_MAPPER
+    sift_first_octave: int = DEFAULT_SIFT_FIRST_OCTAVE
     messages: tuple[str, ...] = field(default_factory=tuple)
     frames_in_placed_models: tuple[str, ...] = ()
 
@@ -283,6 +288,7 @@ def run_quicklook(
     max_image_size_px: int = DEFAULT_MAX_IMAGE_SIZE_PX,
     max_features: int = DEFAULT_MAX_FEATURES,
     mapper: str = DEFAULT_MAPPER,
+    sift_first_octave: int = DEFAULT_SIFT_FIRST_OCTAVE,
     progress: Callable[[str], None] | None = None,
 ) -> QuickLook:
     """Run the stages on the project in ``folder`` (written by
@@ -300,7 +306,12 @@ def run_quicklook(
     t = time.perf_counter()
     say(f"features: SIFT on {len(block)} frames at {max_image_size_px} px")
     colmap.extract_features(
-        db, block.image_dir, block.names, max_image_size_px=max_image_size_px, max_features=max_features
+        db,
+        block.image_dir,
+        block.names,
+        max_image_size_px=max_image_size_px,
+        max_features=max_features,
+        first_octave=sift_first_octave,
     )
     timings["features_s"] = time.perf_counter() - t
     keypoints = colmap.keypoint_counts(db)
@@ -371,6 +382,7 @@ def run_quicklook(
         max_image_size_px=max_image_size_px,
         max_features=max_features,
         mapper=mapper,
+        sift_first_octave=sift_first_octave,
         messages=tuple(messages),
         frames_in_placed_models=tuple(sorted(placed_frames)),
     )

@@ -37,6 +37,7 @@ def quicklook_dict(q: QuickLook) -> dict[str, Any]:
         "max_image_size_px": q.max_image_size_px,
         "max_features": q.max_features,
         "mapper": q.mapper,
+        "sift_first_octave": q.sift_first_octave,
         "keypoints_per_frame_median": float(np.median(list(q.keypoints.values()))) if q.keypoints else None,
         "timings_s": q.timings_s,
         "georegistration": q.georegistration.as_dict() if q.georegistration else None,

@@ -15,7 +15,9 @@ from processing.handoff.quicklook import (
     DEFAULT_MAPPER,
     DEFAULT_MAX_FEATURES,
     DEFAULT_MAX_IMAGE_SIZE_PX,
+    DEFAULT_SIFT_FIRST_OCTAVE,
     MAPPERS,
+    SIFT_FIRST_OCTAVES,
 )
 from processing.image_tags import camera_option
 
@@ -107,6 +109,14 @@ _ENGINES = [e.value for e in Engine]
     show_default=True,
     help="--run: COLMAP's incremental mapper (with the pose priors) or its global mapper (GLOMAP).",
 )
+@click.option(
+    "--sift-first-octave",
+    type=click.Choice([str(v) for v in SIFT_FIRST_OCTAVES]),
+    default=str(DEFAULT_SIFT_FIRST_OCTAVE),
+    show_default=True,
+    help="--run: -1 doubles the downscaled frames before SIFT (finer features, about three times the "
+    "time), 0 takes features from their own pixels.",
+)
 @overwrite_option
 @json_option
 def command(
@@ -126,6 +136,7 @@ def command(
     max_image_size_px: int,
     max_features: int,
     mapper: str,
+    sift_first_octave: str,
     overwrite: bool,
     as_json: bool,
 ) -> HandoffResult:
@@ -167,6 +178,7 @@ def command(
         max_image_size_px=max_image_size_px,
         max_features=max_features,
         mapper=mapper,
+        sift_first_octave=int(sift_first_octave),
         overwrite=overwrite,
         camera=camera_option(camera_id) if camera_id else None,
     )

@@ -288,19 +288,23 @@ def test_frames_with_no_focal_length_ask_for_the_camera(tmp_path: Path, block) -
     assert (tmp_path / "w" / "geo.txt").is_file()
 
 
-@pytest.mark.parametrize("mapper", ["incremental", "global"])
-def test_a_block_that_does_not_reconstruct_exits_1_and_says_so(tmp_path: Path, block, mapper: str) -> None:  # type: ignore[no-untyped-def]
+@pytest.mark.parametrize(("mapper", "octave"), [("incremental", "0"), ("global", "-1")])
+def test_a_block_that_does_not_reconstruct_exits_1_and_says_so(
+    tmp_path: Path, block, mapper: str, octave: str
+) -> None:  # type: ignore[no-untyped-def]
     """--run on frames with nothing to match (the grid's plain images): COLMAP ties no two
     frames together; the project and its report are written, and sfap exits 1 saying so."""
     images, _ = block
     work = tmp_path / "work"
     code, out, err = _run("handoff", str(images), "--to", "colmap", "--run", "--ground-elevation-m", "0",
-                          "--mapper", mapper, "--max-features", "500", "-o", str(work))  # fmt: skip
+                          "--mapper", mapper, "--max-features", "500", "--sift-first-octave", octave,
+                          "-o", str(work))  # fmt: skip
     assert code == 1, out + err
     assert "did NOT reconstruct" in out + err
     report = json.loads((work / "report.json").read_text())
     assert report["quicklook"]["reconstructs"] is False
-    assert (report["quicklook"]["mapper"], report["quicklook"]["max_features"]) == (mapper, 500)
+    quick = report["quicklook"]
+    assert (quick["mapper"], quick["max_features"], quick["sift_first_octave"]) == (mapper, 500, int(octave))
     assert set(report["quicklook"]["timings_s"]) >= {"features_s", "matching_s", "mapping_s"}
 
 

@@ -14,6 +14,7 @@ from PIL import Image
 
 from processing.pixel_match import (
     affine_fit,
+    budget_pairs,
     components,
     mapped_overlap_pct,
     neighbour_pairs,
@@ -91,6 +92,68 @@ def test_neighbour_pairs_keep_along_and_across_pairs_once() -> None:
     pairs, kind = neighbour_pairs(index, along, across)
     assert pairs.tolist() == [[0, 1], [1, 2], [1, 3]]
     assert kind.tolist() == [True, True, False]
+
+
+def _grid_block(lines: int, per_line: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A regular block: ``lines`` lines of ``per_line`` frames (row = line * per_line + k), 10 m
+    apart along a line, 30 m between lines; its neighbour pairs as the check gives them
+    (consecutive frames of a line; each frame and the frame beside it on each neighbouring line)."""
+    xyz = np.array([[10.0 * k, 30.0 * line, 0.0] for line in range(lines) for k in range(per_line)])
+    along = [
+        (line * per_line + k, line * per_line + k + 1) for line in range(lines) for k in range(per_line - 1)
+    ]
+    across = [
+        (line * per_line + k, (line + 1) * per_line + k) for line in range(lines - 1) for k in range(per_line)
+    ]
+    index = np.array(along + across, dtype=np.int64)
+    return index, np.array([True] * len(along) + [False] * len(across)), xyz
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(1, 5), st.integers(2, 9))
+def test_mapper_pairs_without_a_cap_are_the_frames_within_two_along_and_one_across(
+    lines: int, per_line: int
+) -> None:
+    """Uncapped, the quick reconstruction's pairs of a regular block are, by construction: frames
+    of a line up to two apart, and frames of neighbouring lines at most one apart along them."""
+    index, along, xyz = _grid_block(lines, per_line)
+    got = {tuple(p) for p in budget_pairs(index, along, None, xyz, max_per_frame=10_000).tolist()}
+    expected = set()
+    for a in range(lines * per_line):
+        for b in range(a + 1, lines * per_line):
+            (la, ka), (lb, kb) = divmod(a, per_line), divmod(b, per_line)
+            if (la == lb and kb - ka <= 2) or (lb - la == 1 and abs(kb - ka) <= 1):
+                expected.add((a, b))
+    assert got == expected
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(1, 5), st.integers(2, 9), st.integers(1, 12), st.integers(0, 2**31 - 1))
+def test_mapper_pairs_keep_the_neighbours_and_the_budget(
+    lines: int, per_line: int, cap: int, seed: int
+) -> None:
+    """Every neighbour pair is kept; a pair added beyond them never takes a frame past the cap, and
+    comes from the candidates when they are given."""
+    index, along, xyz = _grid_block(lines, per_line)
+    n = lines * per_line
+    rng = np.random.default_rng(seed)
+    every = np.array([(a, b) for a in range(n) for b in range(a + 1, n)], dtype=np.int64).reshape(-1, 2)
+    candidates = every[rng.random(len(every)) < 0.6]
+    got = budget_pairs(index, along, candidates, xyz, max_per_frame=cap)
+    pairs = {tuple(p) for p in got.tolist()}
+    assert len(pairs) == len(got) and all(a < b for a, b in pairs)
+    neighbours = {(min(a, b), max(a, b)) for a, b in index.tolist()}
+    assert neighbours <= pairs
+    allowed = {tuple(p) for p in candidates.tolist()}
+    base_degree = (
+        np.bincount(np.array(sorted(neighbours)).ravel(), minlength=n) if neighbours else np.zeros(n)
+    )
+    degree = np.bincount(got.ravel(), minlength=n)
+    for a, b in pairs - neighbours:
+        assert (a, b) in allowed
+    # Frames that gained pairs stay within the cap.
+    gained = degree > base_degree
+    assert (degree[gained] <= cap).all()
 
 
 # --- COLMAP's matcher on a texture cut at known offsets --------------------------------------------
