@@ -36,7 +36,7 @@ from __future__ import annotations
 import logging
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -49,6 +49,7 @@ from planner.errors import InputError
 from planner.geo import LocalFrame
 
 from .check_result import CheckResult, Gap
+from .check_scale import ScaleFinding, assess_scale, moved_words, rescaled
 from .check_stereo import FrameFlag, StereoFigures, measure_stereo
 from .coverage import Grid, ViewCount
 from .distribution import Distribution
@@ -58,7 +59,7 @@ from .frames import AttitudeSource, Frames, frames_local_frame
 from .ground import Ground
 from .pixel_match import PixelFigures, PixelOptions
 from .plan_frames import PlanInfo
-from .survey_frames import DETRENDED_HEAD
+from .survey_frames import AltitudeTrend
 from .verdict import DEFAULT_THRESHOLDS, Thresholds, above, judge, overlap_warnings
 
 log = logging.getLogger(__name__)
@@ -325,8 +326,7 @@ def block_warnings(
     if left_out:
         out.append(
             f"{len(left_out)} frame(s) left out of coverage, GSD and scale figures: "
-            + "; ".join(f"{name} ({why})" for name, why in left_out[:10])
-            + (f"; and {len(left_out) - 10} more (report.json)" if len(left_out) > 10 else "")
+            + left_out_summary(left_out)
         )
     elif unpositioned:
         out.append(
@@ -359,6 +359,27 @@ def block_warnings(
     return out
 
 
+def left_out_summary(left_out: Sequence[tuple[str, str]], shown: int = 4) -> str:
+    """The frames left out, in one line of a few hundred characters however many there are: each
+    kind of reason (its words before the first colon or parenthesis: "climbing", "on the ground",
+    "no position") with its count, up to three names and one reason in full, the most frequent
+    kinds first; the full list is in report.json."""
+    groups: dict[str, list[tuple[str, str]]] = {}
+    for name, why in left_out:
+        kind = why.split(":", 1)[0].split(" (", 1)[0].strip() or why
+        groups.setdefault(kind, []).append((name, why))
+    ordered = sorted(groups.items(), key=lambda item: -len(item[1]))
+    parts = []
+    for kind, items in ordered[:shown]:
+        names = ", ".join(name for name, _ in items[:3]) + (" ..." if len(items) > 3 else "")
+        example = items[0][1]
+        example = example if len(example) <= 120 else example[:117] + "..."
+        parts.append(f"{len(items)} {kind} ({names}; e.g. {example})")
+    if len(ordered) > shown:
+        parts.append(f"{sum(len(items) for _, items in ordered[shown:])} for other reasons")
+    return "; ".join(parts) + (" (all in report.json)" if len(left_out) > 3 else "")
+
+
 def _drift(frames: Frames, projection: Projection) -> str | None:
     from .survey_frames import altitude_drift_warning
 
@@ -374,6 +395,7 @@ class Measured:
     figures: PixelFigures | None
     warnings: tuple[str, ...]
     notes: tuple[str, ...] = ()
+    scale: ScaleFinding | None = None
 
 
 def measure_in_pixels(
@@ -384,10 +406,15 @@ def measure_in_pixels(
     *,
     camera_rough: bool,
     drift: bool,
+    pairs_from: StereoFigures | None = None,
 ) -> Measured:
     """Step 5b: match the neighbouring frames (consecutive on a line, nearest across lines) and
-    measure overlap, image scale and whether the block holds (:mod:`processing.pixel_match`)."""
-    from .pixel_match import MIN_KEYPOINTS, MIN_MATCH_SIZE_PX, measure_pixels, neighbour_pairs, scale_words
+    measure overlap, image scale and whether the block holds (:mod:`processing.pixel_match`); the
+    measured scale against the tags' (:func:`processing.check_scale.assess_scale`: ``camera_rough``,
+    the camera is known only from its 35 mm equivalent; ``drift``, the altitudes drift).
+    ``pairs_from``: the pairs to match (None: ``stereo``'s); the figures and the scale compare with
+    ``frames`` and ``projection``, the tags."""
+    from .pixel_match import MIN_KEYPOINTS, MIN_MATCH_SIZE_PX, measure_pixels, neighbour_pairs
 
     camera = frames.camera
     if max(camera.image_width_px, camera.image_height_px) < MIN_MATCH_SIZE_PX:
@@ -410,7 +437,8 @@ def measure_in_pixels(
                 "alone (install it with `pip install 'sfap[colmap]'`, or pass --no-pixels to say so)",
             ),
         )
-    index, along = neighbour_pairs(stereo.pair_index, stereo.pair_along_line, stereo.pair_across_lines)
+    chosen = pairs_from if pairs_from is not None else stereo
+    index, along = neighbour_pairs(chosen.pair_index, chosen.pair_along_line, chosen.pair_across_lines)
     fp = projection.footprints
     figures = measure_pixels(
         frames,
@@ -419,7 +447,7 @@ def measure_in_pixels(
         camera_xyz_m=fp.camera_xyz_m,
         tagged_gsd_cm=float(np.median(fp.gsd_cm[projection.valid])),
         options=options,
-        mapper_pairs=stereo.pair_index,
+        mapper_pairs=chosen.pair_index,
     )
     warnings: list[str] = []
     if not figures.conclusive:
@@ -431,7 +459,19 @@ def measure_in_pixels(
                 "tarmac) will not reconstruct; the verdict rests on the tags alone",
             ),
         )
-    said = scale_words(figures, camera_rough=camera_rough, heights_drift=drift)
+    tagged_gsd = figures.tagged_gsd_cm
+    scale = (
+        assess_scale(
+            figures,
+            tagged_gsd_cm=tagged_gsd,
+            tagged_height_m=projection.median_height_m,
+            camera_rough=camera_rough,
+            heights_drift=drift,
+        )
+        if tagged_gsd is not None
+        else None
+    )
+    said = scale.words() if scale is not None else None
     if said is not None:
         warnings.append(said)
     isolated = figures.isolated
@@ -442,7 +482,7 @@ def measure_in_pixels(
             f"featureless ground): {', '.join(names[:10])}"
             + (f" and {len(names) - 10} more" if len(names) > 10 else "")
         )
-    return Measured(figures=figures, warnings=tuple(warnings))
+    return Measured(figures=figures, warnings=tuple(warnings), scale=scale)
 
 
 # --- the pipeline --------------------------------------------------------------------------------
@@ -465,6 +505,7 @@ def run_check(
     camera_source: str = "",
     pixels: PixelOptions | None = None,
     camera_rough: bool = False,
+    detrended: AltitudeTrend | None = None,
 ) -> CheckResult:
     """Check ``frames`` over ``ground`` (same altitude reference; see
     :func:`processing.ground_choice.ground_from_options`) and judge them against ``thresholds``.
@@ -478,7 +519,12 @@ def run_check(
     camera, not a survey frame) go into the report as they are. ``pixels``: match the
     neighbouring frames in that folder and measure overlap, scale and whether the block holds
     (:mod:`processing.pixel_match`; None: the tags alone); ``camera_rough``: the camera is known
-    only roughly (35 mm equivalent), so a scale the pixels contradict is blamed on it.
+    only roughly (35 mm equivalent), so a scale the pixels contradict is blamed on it;
+    ``detrended``: the trend removed from drifting GPS altitudes before the check
+    (:attr:`processing.ground_choice.GroundChoice.detrended`), so such a scale is blamed on the
+    heights. When the pixels' scale is conclusive and the tags' is off
+    (:mod:`processing.check_scale`), the footprints, coverage, GSD (and, for the heights, heights
+    and B/H) come from the measured scale; ``CheckResult.scale`` says so.
     """
     if len(frames) == 0:
         raise ProcessingError("there is no frame to check")
@@ -486,16 +532,82 @@ def run_check(
     judged = choose_area(area, plan, projection)
     coverage = count_views(projection, judged.xy, cell_m, progress)
     gaps = find_gaps(judged.xy, projection, min_area_m2=thresholds.min_gap_area_m2)
-    fp, frame = projection.footprints, projection.frame
-    stereo = measure_stereo(frames, fp, ground, frame, coverage.grid, coverage.in_area, thresholds)
+    stereo = measure_stereo(
+        frames, projection.footprints, ground, projection.frame, coverage.grid, coverage.in_area, thresholds
+    )
     drift = _drift(frames, projection)
     # Altitudes detrended by the ground choice drift as much: a scale that disagrees is the heights'.
-    heights_drift = drift is not None or any(w.startswith(DETRENDED_HEAD) for w in warnings)
+    heights_drift = drift is not None or detrended is not None
     measured = (
         measure_in_pixels(frames, projection, stereo, pixels, camera_rough=camera_rough, drift=heights_drift)
         if pixels is not None
         else None
     )
+    scale = measured.scale if measured is not None else None
+    if pixels is not None and measured is not None and scale is not None and scale.rematch:
+        # The tags' footprints chose the pairs to match, and the pixels say they are off: a footprint
+        # too small misses its neighbours, one too large pairs frames that do not overlap. Match the
+        # pairs that footprints at the measured scale choose, and judge on those.
+        moved_frames, moved_ground = rescaled(frames, ground, scale.provisional())
+        moved = project(moved_frames, moved_ground)
+        moved_area = choose_area(area, plan, moved)
+        moved_views = count_views(moved, moved_area.xy, cell_m, None)
+        moved_stereo = measure_stereo(
+            moved_frames,
+            moved.footprints,
+            moved_ground,
+            moved.frame,
+            moved_views.grid,
+            moved_views.in_area,
+            thresholds,
+        )
+        again = measure_in_pixels(
+            frames,
+            projection,
+            stereo,
+            pixels,
+            camera_rough=camera_rough,
+            drift=heights_drift,
+            pairs_from=moved_stereo,
+        )
+        # Kept when its scale is conclusive (and so used below); else the tags' pairs stand.
+        if (
+            again.figures is not None
+            and again.figures.conclusive
+            and again.scale is not None
+            and again.scale.used
+        ):
+            measured = replace(
+                again,
+                notes=(
+                    *again.notes,
+                    f"the pairs matched were chosen again on footprints at the image scale measured in a "
+                    f"first matching ({scale.measured_gsd_cm:.2f} cm against the tags' "
+                    f"{scale.tagged_gsd_cm:.2f} cm, {scale.pairs} pairs)",
+                ),
+            )
+            scale = again.scale
+    if scale is not None and scale.used:
+        # The pixels' scale is conclusive and the tags' is off: every figure from the frames on the
+        # ground again, with the camera or the ground that gives the measured scale.
+        given_ground = ground_description or ground.description
+        frames, ground = rescaled(frames, ground, scale)
+        projection = project(frames, ground)
+        judged = choose_area(area, plan, projection)
+        coverage = count_views(projection, judged.xy, cell_m, progress)
+        gaps = find_gaps(judged.xy, projection, min_area_m2=thresholds.min_gap_area_m2)
+        stereo = measure_stereo(
+            frames,
+            projection.footprints,
+            ground,
+            projection.frame,
+            coverage.grid,
+            coverage.in_area,
+            thresholds,
+        )
+        if scale.height_offset_m:
+            ground_description = f"{given_ground}{moved_words(scale.height_offset_m)}"
+    fp, frame = projection.footprints, projection.frame
     pixel_notes = measured.notes if measured is not None else ()
     all_warnings = [
         *warnings,
@@ -581,6 +693,7 @@ def run_check(
         left_out=tuple(left_out),
         camera_source=camera_source,
         pixels=pixel_figures,
+        scale=scale,
         stats={
             "views_median": coverage.stats["views_median"],
             "views_max": coverage.stats["views_max"],

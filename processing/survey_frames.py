@@ -176,15 +176,14 @@ def select_survey_frames(
 
 #: A camera altitude that trends by more than this over a flight is reported, metres.
 ALTITUDE_DRIFT_M = 10.0
-#: How the warning of altitudes detrended by the ground choice begins (the check's pixel step
-#: then blames a scale that disagrees on the heights, not the camera).
-DETRENDED_HEAD = "the heights above ground are unreliable: the GPS altitude drifts by"
 
 
 @dataclass(frozen=True, kw_only=True)
 class AltitudeTrend:
     """The least-squares line of altitude on time: ``slope_m_per_s`` over the ``span_s`` of the
-    frames from ``start_s`` (the first frame's time); ``drift_m``: its change over the span."""
+    frames from ``start_s`` (the first frame's time); ``drift_m``: its change over the span. The
+    ground choice carries the trend it removed to the check (``GroundChoice.detrended``,
+    ``CheckInputs.detrended``): the typed sign that the heights drift."""
 
     slope_m_per_s: float
     start_s: float

@@ -238,6 +238,7 @@ def command(
             camera_source=inputs.camera_source,
             pixels=pixel_options,
             camera_rough=inputs.camera_confidence == CameraConfidence.EQUIVALENT_35MM.value,
+            detrended=inputs.detrended,
         )
     refly_plan = None
     if refly and result.gaps:
