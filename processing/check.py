@@ -6,7 +6,10 @@ blur and scale differences, and judges them against :class:`~processing.verdict.
 (:func:`processing.verdict.judge`). This module is the pipeline: :func:`run_check` calls one
 named step per stage (:func:`project`, :func:`choose_area`, :func:`count_views`,
 :func:`find_gaps`, :func:`processing.check_stereo.measure_stereo`, :func:`block_warnings`, the
-judgement) and fills a :class:`~processing.check_result.CheckResult`. The CLI (``sfap check``)
+judgement) and fills a :class:`~processing.check_result.CheckResult`. With images, the pixels are
+matched (:func:`measure_in_pixels`, :func:`match_again`); when their image scale is conclusive and
+the tags' is off, the frames are projected again at the measured scale and every figure is made
+from that projection (:mod:`processing.check_scale`). The CLI (``sfap check``)
 presents the result; ``sfap.cli`` turns a failed check into exit code 1.
 
 The area judged (``CheckResult.area_source`` says which):
@@ -485,6 +488,59 @@ def measure_in_pixels(
     return Measured(figures=figures, warnings=tuple(warnings), scale=scale)
 
 
+def match_again(
+    frames: Frames,
+    ground: Ground,
+    projection: Projection,
+    stereo: StereoFigures,
+    measured: Measured,
+    scale: ScaleFinding,
+    options: PixelOptions,
+    *,
+    area: Polygon | MultiPolygon | None,
+    plan: PlanInfo | None,
+    cell_m: float | None,
+    thresholds: Thresholds,
+    camera_rough: bool,
+    drift: bool,
+) -> Measured:
+    """Step 5c: the tags' footprints chose the pairs to match, and the pixels say the tags' scale
+    is off (``scale.rematch``): a footprint too small misses its neighbours, one too large pairs
+    frames that do not overlap. Match the pairs that footprints at the measured scale choose; keep
+    that matching when its scale is conclusive (it is then used), else the first (``measured``)."""
+    moved_frames, moved_ground = rescaled(frames, ground, scale.provisional())
+    try:
+        moved = project(moved_frames, moved_ground)
+        moved_area = choose_area(area, plan, moved)
+        moved_views = count_views(moved, moved_area.xy, cell_m, None)
+    except (ProcessingError, InputError) as error:
+        log.warning("the pairs were not matched again at the measured scale: %s", error)
+        return measured
+    moved_stereo = measure_stereo(
+        moved_frames,
+        moved.footprints,
+        moved_ground,
+        moved.frame,
+        moved_views.grid,
+        moved_views.in_area,
+        thresholds,
+    )
+    again = measure_in_pixels(
+        frames, projection, stereo, options, camera_rough=camera_rough, drift=drift, pairs_from=moved_stereo
+    )
+    if again.figures is None or not again.figures.conclusive or again.scale is None or not again.scale.used:
+        return measured
+    return replace(
+        again,
+        notes=(
+            *again.notes,
+            "the pairs matched were chosen again on footprints at the image scale measured in a first "
+            f"matching ({scale.measured_gsd_cm:.2f} cm against the tags' {scale.tagged_gsd_cm:.2f} cm, "
+            f"{scale.pairs} pairs)",
+        ),
+    )
+
+
 # --- the pipeline --------------------------------------------------------------------------------
 
 
@@ -545,48 +601,22 @@ def run_check(
     )
     scale = measured.scale if measured is not None else None
     if pixels is not None and measured is not None and scale is not None and scale.rematch:
-        # The tags' footprints chose the pairs to match, and the pixels say they are off: a footprint
-        # too small misses its neighbours, one too large pairs frames that do not overlap. Match the
-        # pairs that footprints at the measured scale choose, and judge on those.
-        moved_frames, moved_ground = rescaled(frames, ground, scale.provisional())
-        moved = project(moved_frames, moved_ground)
-        moved_area = choose_area(area, plan, moved)
-        moved_views = count_views(moved, moved_area.xy, cell_m, None)
-        moved_stereo = measure_stereo(
-            moved_frames,
-            moved.footprints,
-            moved_ground,
-            moved.frame,
-            moved_views.grid,
-            moved_views.in_area,
-            thresholds,
-        )
-        again = measure_in_pixels(
+        measured = match_again(
             frames,
+            ground,
             projection,
             stereo,
+            measured,
+            scale,
             pixels,
+            area=area,
+            plan=plan,
+            cell_m=cell_m,
+            thresholds=thresholds,
             camera_rough=camera_rough,
             drift=heights_drift,
-            pairs_from=moved_stereo,
         )
-        # Kept when its scale is conclusive (and so used below); else the tags' pairs stand.
-        if (
-            again.figures is not None
-            and again.figures.conclusive
-            and again.scale is not None
-            and again.scale.used
-        ):
-            measured = replace(
-                again,
-                notes=(
-                    *again.notes,
-                    f"the pairs matched were chosen again on footprints at the image scale measured in a "
-                    f"first matching ({scale.measured_gsd_cm:.2f} cm against the tags' "
-                    f"{scale.tagged_gsd_cm:.2f} cm, {scale.pairs} pairs)",
-                ),
-            )
-            scale = again.scale
+        scale = measured.scale
     if scale is not None and scale.used:
         # The pixels' scale is conclusive and the tags' is off: every figure from the frames on the
         # ground again, with the camera or the ground that gives the measured scale.
