@@ -62,7 +62,7 @@ from .frames import AttitudeSource, Frames, frames_local_frame
 from .ground import Ground
 from .pixel_match import PixelFigures, PixelOptions
 from .plan_frames import PlanInfo
-from .survey_frames import AltitudeTrend
+from .survey_frames import AltitudeTrend, left_out_summary
 from .verdict import DEFAULT_THRESHOLDS, Thresholds, above, judge, overlap_warnings
 
 log = logging.getLogger(__name__)
@@ -360,27 +360,6 @@ def block_warnings(
                     f"reported scale with it ({100 * off / planned.altitude_agl_m:+.0f} %)"
                 )
     return out
-
-
-def left_out_summary(left_out: Sequence[tuple[str, str]], shown: int = 4) -> str:
-    """The frames left out, in one line of a few hundred characters however many there are: each
-    kind of reason (its words before the first colon or parenthesis: "climbing", "on the ground",
-    "no position") with its count, up to three names and one reason in full, the most frequent
-    kinds first; the full list is in report.json."""
-    groups: dict[str, list[tuple[str, str]]] = {}
-    for name, why in left_out:
-        kind = why.split(":", 1)[0].split(" (", 1)[0].strip() or why
-        groups.setdefault(kind, []).append((name, why))
-    ordered = sorted(groups.items(), key=lambda item: -len(item[1]))
-    parts = []
-    for kind, items in ordered[:shown]:
-        names = ", ".join(name for name, _ in items[:3]) + (" ..." if len(items) > 3 else "")
-        example = items[0][1]
-        example = example if len(example) <= 120 else example[:117] + "..."
-        parts.append(f"{len(items)} {kind} ({names}; e.g. {example})")
-    if len(ordered) > shown:
-        parts.append(f"{sum(len(items) for _, items in ordered[shown:])} for other reasons")
-    return "; ".join(parts) + (" (all in report.json)" if len(left_out) > 3 else "")
 
 
 def _drift(frames: Frames, projection: Projection) -> str | None:

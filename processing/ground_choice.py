@@ -357,11 +357,11 @@ def _survey_frames(
         )
     left = tuple((frames.name[k], why) for k, why in selection.left_out)
     if left:
-        from .image_frames import summarise_reasons
+        from .survey_frames import left_out_summary
 
         log.warning(
             "%d frame(s) are not survey frames and are left out (all in the report): %s",
             len(left),
-            summarise_reasons(left),
+            left_out_summary(left),
         )
     return selection.keep, left

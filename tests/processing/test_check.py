@@ -578,7 +578,7 @@ def test_a_long_list_of_frames_left_out_is_one_summarised_line() -> None:
     """A card of 123 placeholder positions, 20 climbing frames, 3 on the ground and 2 in transit
     (the issue's card gave a 10,916-character line): one line of a few hundred characters, every
     kind counted, the counts adding up, the full list left to report.json."""
-    from processing.check import left_out_summary
+    from processing.survey_frames import left_out_summary
 
     left = (
         [
