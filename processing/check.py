@@ -6,7 +6,10 @@ blur and scale differences, and judges them against :class:`~processing.verdict.
 (:func:`processing.verdict.judge`). This module is the pipeline: :func:`run_check` calls one
 named step per stage (:func:`project`, :func:`choose_area`, :func:`count_views`,
 :func:`find_gaps`, :func:`processing.check_stereo.measure_stereo`, :func:`block_warnings`, the
-judgement) and fills a :class:`~processing.check_result.CheckResult`. The CLI (``sfap check``)
+judgement) and fills a :class:`~processing.check_result.CheckResult`. With images, the pixels are
+matched (:func:`measure_in_pixels`, :func:`match_again`); when their image scale is conclusive and
+the tags' is off, the frames are projected again at the measured scale and every figure is made
+from that projection (:mod:`processing.check_scale`). The CLI (``sfap check``)
 presents the result; ``sfap.cli`` turns a failed check into exit code 1.
 
 The area judged (``CheckResult.area_source`` says which):
@@ -36,7 +39,7 @@ from __future__ import annotations
 import logging
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -49,6 +52,7 @@ from planner.errors import InputError
 from planner.geo import LocalFrame
 
 from .check_result import CheckResult, Gap
+from .check_scale import ScaleFinding, assess_scale, moved_words, rescaled
 from .check_stereo import FrameFlag, StereoFigures, measure_stereo
 from .coverage import Grid, ViewCount
 from .distribution import Distribution
@@ -58,7 +62,7 @@ from .frames import AttitudeSource, Frames, frames_local_frame
 from .ground import Ground
 from .pixel_match import PixelFigures, PixelOptions
 from .plan_frames import PlanInfo
-from .survey_frames import DETRENDED_HEAD
+from .survey_frames import AltitudeTrend, left_out_summary
 from .verdict import DEFAULT_THRESHOLDS, Thresholds, above, judge, overlap_warnings
 
 log = logging.getLogger(__name__)
@@ -325,8 +329,7 @@ def block_warnings(
     if left_out:
         out.append(
             f"{len(left_out)} frame(s) left out of coverage, GSD and scale figures: "
-            + "; ".join(f"{name} ({why})" for name, why in left_out[:10])
-            + (f"; and {len(left_out) - 10} more (report.json)" if len(left_out) > 10 else "")
+            + left_out_summary(left_out)
         )
     elif unpositioned:
         out.append(
@@ -374,6 +377,7 @@ class Measured:
     figures: PixelFigures | None
     warnings: tuple[str, ...]
     notes: tuple[str, ...] = ()
+    scale: ScaleFinding | None = None
 
 
 def measure_in_pixels(
@@ -384,10 +388,15 @@ def measure_in_pixels(
     *,
     camera_rough: bool,
     drift: bool,
+    pairs_from: StereoFigures | None = None,
 ) -> Measured:
     """Step 5b: match the neighbouring frames (consecutive on a line, nearest across lines) and
-    measure overlap, image scale and whether the block holds (:mod:`processing.pixel_match`)."""
-    from .pixel_match import MIN_KEYPOINTS, MIN_MATCH_SIZE_PX, measure_pixels, neighbour_pairs, scale_words
+    measure overlap, image scale and whether the block holds (:mod:`processing.pixel_match`); the
+    measured scale against the tags' (:func:`processing.check_scale.assess_scale`: ``camera_rough``,
+    the camera is known only from its 35 mm equivalent; ``drift``, the altitudes drift).
+    ``pairs_from``: the pairs to match (None: ``stereo``'s); the figures and the scale compare with
+    ``frames`` and ``projection``, the tags."""
+    from .pixel_match import MIN_KEYPOINTS, MIN_MATCH_SIZE_PX, measure_pixels, neighbour_pairs
 
     camera = frames.camera
     if max(camera.image_width_px, camera.image_height_px) < MIN_MATCH_SIZE_PX:
@@ -410,7 +419,8 @@ def measure_in_pixels(
                 "alone (install it with `pip install 'sfap[colmap]'`, or pass --no-pixels to say so)",
             ),
         )
-    index, along = neighbour_pairs(stereo.pair_index, stereo.pair_along_line, stereo.pair_across_lines)
+    chosen = pairs_from if pairs_from is not None else stereo
+    index, along = neighbour_pairs(chosen.pair_index, chosen.pair_along_line, chosen.pair_across_lines)
     fp = projection.footprints
     figures = measure_pixels(
         frames,
@@ -419,7 +429,7 @@ def measure_in_pixels(
         camera_xyz_m=fp.camera_xyz_m,
         tagged_gsd_cm=float(np.median(fp.gsd_cm[projection.valid])),
         options=options,
-        mapper_pairs=stereo.pair_index,
+        mapper_pairs=chosen.pair_index,
     )
     warnings: list[str] = []
     if not figures.conclusive:
@@ -431,7 +441,19 @@ def measure_in_pixels(
                 "tarmac) will not reconstruct; the verdict rests on the tags alone",
             ),
         )
-    said = scale_words(figures, camera_rough=camera_rough, heights_drift=drift)
+    tagged_gsd = figures.tagged_gsd_cm
+    scale = (
+        assess_scale(
+            figures,
+            tagged_gsd_cm=tagged_gsd,
+            tagged_height_m=projection.median_height_m,
+            camera_rough=camera_rough,
+            heights_drift=drift,
+        )
+        if tagged_gsd is not None
+        else None
+    )
+    said = scale.words() if scale is not None else None
     if said is not None:
         warnings.append(said)
     isolated = figures.isolated
@@ -442,7 +464,60 @@ def measure_in_pixels(
             f"featureless ground): {', '.join(names[:10])}"
             + (f" and {len(names) - 10} more" if len(names) > 10 else "")
         )
-    return Measured(figures=figures, warnings=tuple(warnings))
+    return Measured(figures=figures, warnings=tuple(warnings), scale=scale)
+
+
+def match_again(
+    frames: Frames,
+    ground: Ground,
+    projection: Projection,
+    stereo: StereoFigures,
+    measured: Measured,
+    scale: ScaleFinding,
+    options: PixelOptions,
+    *,
+    area: Polygon | MultiPolygon | None,
+    plan: PlanInfo | None,
+    cell_m: float | None,
+    thresholds: Thresholds,
+    camera_rough: bool,
+    drift: bool,
+) -> Measured:
+    """Step 5c: the tags' footprints chose the pairs to match, and the pixels say the tags' scale
+    is off (``scale.rematch``): a footprint too small misses its neighbours, one too large pairs
+    frames that do not overlap. Match the pairs that footprints at the measured scale choose; keep
+    that matching when its scale is conclusive (it is then used), else the first (``measured``)."""
+    moved_frames, moved_ground = rescaled(frames, ground, scale.provisional())
+    try:
+        moved = project(moved_frames, moved_ground)
+        moved_area = choose_area(area, plan, moved)
+        moved_views = count_views(moved, moved_area.xy, cell_m, None)
+    except (ProcessingError, InputError) as error:
+        log.warning("the pairs were not matched again at the measured scale: %s", error)
+        return measured
+    moved_stereo = measure_stereo(
+        moved_frames,
+        moved.footprints,
+        moved_ground,
+        moved.frame,
+        moved_views.grid,
+        moved_views.in_area,
+        thresholds,
+    )
+    again = measure_in_pixels(
+        frames, projection, stereo, options, camera_rough=camera_rough, drift=drift, pairs_from=moved_stereo
+    )
+    if again.figures is None or not again.figures.conclusive or again.scale is None or not again.scale.used:
+        return measured
+    return replace(
+        again,
+        notes=(
+            *again.notes,
+            "the pairs matched were chosen again on footprints at the image scale measured in a first "
+            f"matching ({scale.measured_gsd_cm:.2f} cm against the tags' {scale.tagged_gsd_cm:.2f} cm, "
+            f"{scale.pairs} pairs)",
+        ),
+    )
 
 
 # --- the pipeline --------------------------------------------------------------------------------
@@ -465,6 +540,7 @@ def run_check(
     camera_source: str = "",
     pixels: PixelOptions | None = None,
     camera_rough: bool = False,
+    detrended: AltitudeTrend | None = None,
 ) -> CheckResult:
     """Check ``frames`` over ``ground`` (same altitude reference; see
     :func:`processing.ground_choice.ground_from_options`) and judge them against ``thresholds``.
@@ -478,7 +554,12 @@ def run_check(
     camera, not a survey frame) go into the report as they are. ``pixels``: match the
     neighbouring frames in that folder and measure overlap, scale and whether the block holds
     (:mod:`processing.pixel_match`; None: the tags alone); ``camera_rough``: the camera is known
-    only roughly (35 mm equivalent), so a scale the pixels contradict is blamed on it.
+    only roughly (35 mm equivalent), so a scale the pixels contradict is blamed on it;
+    ``detrended``: the trend removed from drifting GPS altitudes before the check
+    (:attr:`processing.ground_choice.GroundChoice.detrended`), so such a scale is blamed on the
+    heights. When the pixels' scale is conclusive and the tags' is off
+    (:mod:`processing.check_scale`), the footprints, coverage, GSD (and, for the heights, heights
+    and B/H) come from the measured scale; ``CheckResult.scale`` says so.
     """
     if len(frames) == 0:
         raise ProcessingError("there is no frame to check")
@@ -486,16 +567,56 @@ def run_check(
     judged = choose_area(area, plan, projection)
     coverage = count_views(projection, judged.xy, cell_m, progress)
     gaps = find_gaps(judged.xy, projection, min_area_m2=thresholds.min_gap_area_m2)
-    fp, frame = projection.footprints, projection.frame
-    stereo = measure_stereo(frames, fp, ground, frame, coverage.grid, coverage.in_area, thresholds)
+    stereo = measure_stereo(
+        frames, projection.footprints, ground, projection.frame, coverage.grid, coverage.in_area, thresholds
+    )
     drift = _drift(frames, projection)
     # Altitudes detrended by the ground choice drift as much: a scale that disagrees is the heights'.
-    heights_drift = drift is not None or any(w.startswith(DETRENDED_HEAD) for w in warnings)
+    heights_drift = drift is not None or detrended is not None
     measured = (
         measure_in_pixels(frames, projection, stereo, pixels, camera_rough=camera_rough, drift=heights_drift)
         if pixels is not None
         else None
     )
+    scale = measured.scale if measured is not None else None
+    if pixels is not None and measured is not None and scale is not None and scale.rematch:
+        measured = match_again(
+            frames,
+            ground,
+            projection,
+            stereo,
+            measured,
+            scale,
+            pixels,
+            area=area,
+            plan=plan,
+            cell_m=cell_m,
+            thresholds=thresholds,
+            camera_rough=camera_rough,
+            drift=heights_drift,
+        )
+        scale = measured.scale
+    if scale is not None and scale.used:
+        # The pixels' scale is conclusive and the tags' is off: every figure from the frames on the
+        # ground again, with the camera or the ground that gives the measured scale.
+        given_ground = ground_description or ground.description
+        frames, ground = rescaled(frames, ground, scale)
+        projection = project(frames, ground)
+        judged = choose_area(area, plan, projection)
+        coverage = count_views(projection, judged.xy, cell_m, progress)
+        gaps = find_gaps(judged.xy, projection, min_area_m2=thresholds.min_gap_area_m2)
+        stereo = measure_stereo(
+            frames,
+            projection.footprints,
+            ground,
+            projection.frame,
+            coverage.grid,
+            coverage.in_area,
+            thresholds,
+        )
+        if scale.height_offset_m:
+            ground_description = f"{given_ground}{moved_words(scale.height_offset_m)}"
+    fp, frame = projection.footprints, projection.frame
     pixel_notes = measured.notes if measured is not None else ()
     all_warnings = [
         *warnings,
@@ -581,6 +702,7 @@ def run_check(
         left_out=tuple(left_out),
         camera_source=camera_source,
         pixels=pixel_figures,
+        scale=scale,
         stats={
             "views_median": coverage.stats["views_median"],
             "views_max": coverage.stats["views_max"],

@@ -22,6 +22,7 @@ from .ground import Ground
 from .ground_choice import GroundChoice, ground_for_plan, images_ground
 from .image_frames import image_paths, read_image_frames
 from .plan_frames import PlanInfo, frames_from_plan, read_plan_info
+from .survey_frames import AltitudeTrend
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -42,6 +43,8 @@ class CheckInputs:
     camera_source: str = ""
     camera_confidence: str = ""
     image_dir: Path | None = None
+    #: The trend removed from drifting GPS altitudes (None: not detrended).
+    detrended: AltitudeTrend | None = None
 
 
 def gather_inputs(
@@ -108,5 +111,10 @@ def gather_inputs(
 def _inputs(choice: GroundChoice, plan: PlanInfo | None, **said: Any) -> CheckInputs:
     """The frames and ground chosen, the plan, and what the report says of the inputs."""
     return CheckInputs(
-        frames=choice.frames, ground=choice.ground, ground_description=choice.description, plan=plan, **said
+        frames=choice.frames,
+        ground=choice.ground,
+        ground_description=choice.description,
+        plan=plan,
+        detrended=choice.detrended,
+        **said,
     )

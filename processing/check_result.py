@@ -12,6 +12,7 @@ from shapely.geometry import MultiPolygon, Polygon
 
 from planner.geo import LocalFrame
 
+from .check_scale import Blame, ScaleFinding
 from .check_stereo import FrameFlag, StereoFigures
 from .distribution import Distribution
 from .frames import Frames
@@ -80,6 +81,9 @@ class CheckResult:
     left_out: tuple[tuple[str, str], ...] = ()
     camera_source: str = ""
     pixels: PixelFigures | None = None
+    #: The measured image scale against the tags' (:mod:`processing.check_scale`); when ``used``,
+    #: the footprints, coverage and GSD (and for the heights, heights and B/H) come from it.
+    scale: ScaleFinding | None = None
     stats: dict[str, Any] = field(default_factory=dict)
 
     @property
@@ -179,12 +183,32 @@ class CheckResult:
             from .pixel_match import describe
 
             rows.extend(describe(self.pixels))
+        scale = self.scale if self.scale is not None and self.scale.used else None
         gsd = Distribution.of(self.gsd_cm)
         if gsd is not None:
-            rows.append(("GSD", f"median {gsd.median:.2f} cm ({gsd.min:.2f}-{gsd.max:.2f} cm)"))
+            text = f"median {gsd.median:.2f} cm ({gsd.min:.2f}-{gsd.max:.2f} cm)"
+            if scale is not None:
+                text += " from the image scale measured in the pixels; " + (
+                    f"the tags give {scale.tagged_gsd_cm:.2f} cm"
+                )
+            rows.append(("GSD", text))
         h = Distribution.of(self.height_agl_m)
         if h is not None:
-            rows.append(("height above ground", f"median {h.median:.1f} m ({h.min:.1f}-{h.max:.1f} m)"))
+            text = f"median {h.median:.1f} m ({h.min:.1f}-{h.max:.1f} m)"
+            if scale is not None and scale.blame is Blame.HEIGHTS:
+                text += f" from the image scale; the tags give {scale.tagged_height_m:.1f} m"
+            elif scale is not None and scale.blame is Blame.EITHER:
+                text += f" as tagged; {scale.measured_height_m:.1f} m if the camera is right"
+            rows.append(("height above ground", text))
+        if scale is not None and scale.blame is not Blame.HEIGHTS:
+            rows.append(
+                (
+                    "focal length",
+                    f"{scale.measured_focal_px:.0f} px from the image scale measured in the pixels"
+                    + (" if the heights are right" if scale.blame is Blame.EITHER else "")
+                    + f"; the camera assumed has {scale.tagged_focal_px:.0f} px",
+                )
+            )
         speed = Distribution.of(self.stereo.speed_m_s) if self.stereo.speed_m_s is not None else None
         if self.stereo.speed_m_s is None:
             rows.append(("ground speed", "not measured (no capture times)"))
@@ -305,6 +329,7 @@ class CheckResult:
                 "doming_risk": self.stereo.doming_risk,
             },
             "pixels": self.pixels.as_dict() if self.pixels is not None else None,
+            "scale": self.scale.as_dict() if self.scale is not None else None,
             "gsd_cm": (d.as_dict() if (d := Distribution.of(self.gsd_cm)) else None),
             "height_agl_m": (d.as_dict() if (d := Distribution.of(self.height_agl_m)) else None),
             "speed_m_s": (

@@ -15,3 +15,12 @@ class GroundError(TerrainError):
 
 class FramesError(InputError):
     """Images or a plan cannot be read as frames (no position, no camera...)."""
+
+
+class NoPositionsError(FramesError):
+    """None of the images has a real position (``names``: the images read): nothing to put on the
+    ground; ``sfap check`` then judges them on their pixels alone (processing.check_pixels)."""
+
+    def __init__(self, message: str, *, names: tuple[str, ...] = ()) -> None:
+        super().__init__(message)
+        self.names = names

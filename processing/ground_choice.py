@@ -23,7 +23,7 @@ from planner.camera import Orientation
 from .errors import GroundError
 from .frames import AltitudeReference, AttitudeSource, Frames, frames_local_frame, local_frame_at
 from .plan_frames import PlanInfo
-from .survey_frames import ON_GROUND_M
+from .survey_frames import ON_GROUND_M, AltitudeTrend
 
 if TYPE_CHECKING:
     from .ground import Ground
@@ -45,6 +45,9 @@ class GroundChoice:
     left_out: tuple[tuple[str, str], ...] = ()
     #: What makes the heights unreliable (drifting GPS altitudes and what was done about it).
     warnings: tuple[str, ...] = ()
+    #: The trend removed from drifting GPS altitudes (None: not detrended): the check then blames a
+    #: measured image scale that disagrees on the heights.
+    detrended: AltitudeTrend | None = None
 
 
 def ground_from_options(
@@ -150,23 +153,24 @@ def ground_from_options(
     # GPS altitudes over flat ground only: over a DEM a terrain-following flight's altitudes trend
     # with the ground, and the heights above the DEM are judged as they are.
     gps_over_flat = ref in (AltitudeReference.AMSL, AltitudeReference.ELLIPSOID) and dem is None
-    frames, warnings = _undrift(frames) if gps_over_flat else (frames, ())
-    keep, left_out = _survey_frames(frames, ground, description, drifting=bool(warnings))
+    frames, trend, warnings = _undrift(frames) if gps_over_flat else (frames, None, ())
+    keep, left_out = _survey_frames(frames, ground, description, drifting=trend is not None)
     return GroundChoice(
         ground=ground,
         frames=frames.select(keep),
         description=description,
         left_out=left_out,
         warnings=warnings,
+        detrended=trend,
     )
 
 
-def _undrift(frames: Frames) -> tuple[Frames, tuple[str, ...]]:
+def _undrift(frames: Frames) -> tuple[Frames, AltitudeTrend | None, tuple[str, ...]]:
     """Frames whose GPS altitudes (AMSL or ellipsoidal, over flat ground) trend by more than
     ALTITUDE_DRIFT_M over the card (:func:`processing.survey_frames.altitude_trend`, and the plain
-    least-squares line over all of them agrees), with the trend removed, and the warning that says
-    so; the frames unchanged and no warning otherwise (and for a plan's stations)."""
-    from .survey_frames import ALTITUDE_DRIFT_M, DETRENDED_HEAD, altitude_trend
+    least-squares line over all of them agrees), with the trend removed, the trend, and the warning
+    that says so; the frames unchanged, None and no warning otherwise (and for a plan's stations)."""
+    from .survey_frames import ALTITUDE_DRIFT_M, altitude_trend
 
     t = frames.time_utc_s
     if (
@@ -174,24 +178,25 @@ def _undrift(frames: Frames) -> tuple[Frames, tuple[str, ...]]:
         or frames.attitude_source is AttitudeSource.PLAN
         or frames.alt_reference not in (AltitudeReference.AMSL, AltitudeReference.ELLIPSOID)
     ):
-        return frames, ()
+        return frames, None, ()
     trend = altitude_trend(frames.alt_m, t)
     if trend is None or not abs(trend.drift_m) > ALTITUDE_DRIFT_M:
-        return frames, ()
+        return frames, None, ()
     # The plain least-squares line over every frame must say so too: a few minutes of frames and one
     # frame long after them (a robust line through them extrapolates a minute's climb) do not drift.
     plain = float(np.polyfit(t - trend.start_s, frames.alt_m, 1)[0]) * trend.span_s
     if not (abs(plain) > ALTITUDE_DRIFT_M and plain * trend.drift_m > 0):
-        return frames, ()
+        return frames, None, ()
     warning = (
-        f"{DETRENDED_HEAD} {trend.drift_m:+.1f} m over the {trend.span_s / 60:.0f} min of the card "
+        "the heights above ground are unreliable: the GPS altitude drifts by "
+        f"{trend.drift_m:+.1f} m over the {trend.span_s / 60:.0f} min of the card "
         "(least-squares line of altitude on time); the frames are judged on the detrended altitudes, "
         "assuming the block was flown at one height, the GPS altitude of mid-flight, so heights and GSD "
         "carry that altitude's error (the image scale measured from the pixels, when the frames are "
         "matched, checks it); a relative (barometric) altitude settles it"
     )
     log.warning("%s", warning)
-    return replace(frames, alt_m=trend.detrended(frames.alt_m, t)), (warning,)
+    return replace(frames, alt_m=trend.detrended(frames.alt_m, t)), trend, (warning,)
 
 
 def plan_dem_path(info: PlanInfo) -> Path | None:
@@ -352,11 +357,11 @@ def _survey_frames(
         )
     left = tuple((frames.name[k], why) for k, why in selection.left_out)
     if left:
-        from .image_frames import summarise_reasons
+        from .survey_frames import left_out_summary
 
         log.warning(
             "%d frame(s) are not survey frames and are left out (all in the report): %s",
             len(left),
-            summarise_reasons(left),
+            left_out_summary(left),
         )
     return selection.keep, left

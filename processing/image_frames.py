@@ -22,7 +22,7 @@ import numpy as np
 
 from planner.camera import Camera
 
-from .errors import FramesError
+from .errors import FramesError, NoPositionsError
 from .frames import AltitudeReference, AttitudeSource, Frames
 from .image_tags import CameraConfidence, choose_camera, display_name, known, pix4d_from_dji_gimbal
 from .track import track_heading_deg
@@ -278,9 +278,10 @@ def frames_from_tags(
             summarise_names(unpositioned),
         )
     if not kept:
-        raise FramesError(
+        raise NoPositionsError(
             f"{where}: no GPS positions: geotag first (`sfap geotag IMAGES --log FLIGHT_LOG -o TAGGED`); "
-            f"none of the {len(tags)} images has a real position ({summarise_reasons(left_out)})"
+            f"none of the {len(tags)} images has a real position ({summarise_reasons(left_out)})",
+            names=tuple(t.name for t in tags),
         )
 
     # One camera and image size per check: the largest group; the others are listed.

@@ -25,7 +25,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from pyproj import CRS
 from shapely.geometry import Polygon, mapping
 from shapely.geometry.polygon import orient
 
@@ -296,18 +295,17 @@ def write_coverage_tif(result: CheckResult, path: str | os.PathLike[str]) -> Pat
     """coverage.tif: frames that see each cell, int32, ``COVERAGE_NODATA`` outside the area, in
     the UTM zone's EPSG code when the area lies in one zone (resampled, nearest, same cell size),
     else in the check's own transverse Mercator frame; the band is described."""
-    from .geotiff import utm_epsg, write_geotiff
+    from .geotiff import write_geotiff
 
     counts = np.where(result.in_area, result.view_count, COVERAGE_NODATA).astype(np.int32)
-    west, south, east, north = result.area_lonlat.bounds
-    epsg = utm_epsg(west, south, east, north)
+    _, crs = result.output_crs()  # the one CRS report.json names too
     return write_geotiff(
         path,
         counts,
         result.grid,
         nodata=COVERAGE_NODATA,
         description="views: frames that see the cell (0 = gap; nodata outside the area judged)",
-        to_crs=CRS.from_epsg(epsg) if epsg is not None else None,
+        to_crs=None if crs == result.frame.crs else crs,
     )
 
 

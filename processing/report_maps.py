@@ -104,7 +104,8 @@ class _Map:
             grid = f"grid {frame.crs.name}, metres. The arrow points to grid north"
         return (
             f"Origin (0, 0): the area's south-west corner, {abs(lat):.5f} deg {'N' if lat >= 0 else 'S'}, "
-            f"{abs(lon):.5f} deg {'E' if lon >= 0 else 'W'}; {grid}."
+            f"{abs(lon):.5f} deg {'E' if lon >= 0 else 'W'}; {grid}. The check's files (coverage.tif, "
+            f"report.json) are in {self.result.output_crs()[0]}."
         )
 
     def north_arrow(self) -> None:

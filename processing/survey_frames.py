@@ -33,6 +33,7 @@ metres): the check refuses and says so.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -176,15 +177,14 @@ def select_survey_frames(
 
 #: A camera altitude that trends by more than this over a flight is reported, metres.
 ALTITUDE_DRIFT_M = 10.0
-#: How the warning of altitudes detrended by the ground choice begins (the check's pixel step
-#: then blames a scale that disagrees on the heights, not the camera).
-DETRENDED_HEAD = "the heights above ground are unreliable: the GPS altitude drifts by"
 
 
 @dataclass(frozen=True, kw_only=True)
 class AltitudeTrend:
     """The least-squares line of altitude on time: ``slope_m_per_s`` over the ``span_s`` of the
-    frames from ``start_s`` (the first frame's time); ``drift_m``: its change over the span."""
+    frames from ``start_s`` (the first frame's time); ``drift_m``: its change over the span. The
+    ground choice carries the trend it removed to the check (``GroundChoice.detrended``,
+    ``CheckInputs.detrended``): the typed sign that the heights drift."""
 
     slope_m_per_s: float
     start_s: float
@@ -261,3 +261,24 @@ def altitude_drift_warning(
         f"altitude drifted, and heights above ground and GSD carry about +-{abs(drift) / 2:.0f} m "
         f"(+-{share:.0f} %); a relative (barometric) altitude or a surveyed take-off elevation settles it"
     )
+
+
+def left_out_summary(left_out: Sequence[tuple[str, str]], shown: int = 4) -> str:
+    """The frames left out, in one line of a few hundred characters however many there are: each
+    kind of reason (its words before the first colon or parenthesis: "climbing", "on the ground",
+    "no position") with its count, up to three names and one reason in full, the most frequent
+    kinds first; the full list is in report.json."""
+    groups: dict[str, list[tuple[str, str]]] = {}
+    for name, why in left_out:
+        kind = why.split(":", 1)[0].split(" (", 1)[0].strip() or why
+        groups.setdefault(kind, []).append((name, why))
+    ordered = sorted(groups.items(), key=lambda item: -len(item[1]))
+    parts = []
+    for kind, items in ordered[:shown]:
+        names = ", ".join(name for name, _ in items[:3]) + (" ..." if len(items) > 3 else "")
+        example = items[0][1]
+        example = example if len(example) <= 120 else example[:117] + "..."
+        parts.append(f"{len(items)} {kind} ({names}; e.g. {example})")
+    if len(ordered) > shown:
+        parts.append(f"{sum(len(items) for _, items in ordered[shown:])} for other reasons")
+    return "; ".join(parts) + (" (all in report.json)" if len(left_out) > 3 else "")

@@ -15,8 +15,9 @@ from planner.outputs import check_output_dir
 from planner.plan_folder import is_plan_folder
 from processing.check import MAX_CELL_M, MIN_CELL_M, run_check
 from processing.check_inputs import gather_inputs
+from processing.check_pixels import PixelOnlyCheck
 from processing.check_result import CheckResult
-from processing.errors import ProcessingError
+from processing.errors import NoPositionsError, ProcessingError
 from processing.image_tags import CameraConfidence, camera_option
 from processing.pixel_match import DEFAULT_MATCH_SIZE_PX, PixelOptions
 from processing.verdict import Thresholds
@@ -166,7 +167,7 @@ def command(
     overwrite: bool,
     as_json: bool,
     no_progress: bool,
-) -> CheckResult:
+) -> CheckResult | PixelOnlyCheck:
     """Check the frames in IMAGES_OR_PLAN (a folder of geotagged images, or a plan folder
     written by `sfap plan` to check the plan itself) before leaving the field: views per
     ground cell, gaps, forward and side overlap, base-height ratios, GSD, motion blur.
@@ -174,9 +175,11 @@ def command(
     Images' EXIF altitudes are above mean sea level: give --ground-elevation-m or --dem (the
     check never guesses the height above ground); DJI's relative altitudes are above take-off.
     Frames without a real position, of another camera or image size, or not taken on the survey
-    (on the ground, climbing, in transit) are left out and listed. A plan is judged on its own
-    ground: a terrain plan on its DEM (found in the plan folder, or --dem) and take-off
-    elevation, a flat plan on flat ground at home, or on --dem from the DEM's elevation at
+    (on the ground, climbing, in transit) are left out and listed. When no image has a position
+    (a kite, a camera without GPS), the images are judged on their pixels alone: whether they
+    match and a quick reconstruction holds them (with -o, report.json only; --no-pixels refuses).
+    A plan is judged on its own ground: a terrain plan on its DEM (found in the plan folder, or
+    --dem) and take-off elevation, a flat plan on flat ground at home, or on --dem from the DEM's elevation at
     home; images flown from a terrain plan (--plan) use its DEM when no ground is given.
 
     Exit code 0 when every threshold is met, 1 when the check fails (the reasons are
@@ -193,15 +196,26 @@ def command(
     show_progress = not no_progress and not as_json
     if plan_dir is not None and is_plan_folder(source):
         raise click.UsageError(f"{source} is a plan folder already; drop --plan")
-    with progress("reading images", 0 if is_plan_folder(source) else 100, enabled=show_progress) as advance:
-        inputs = gather_inputs(
-            source,
-            plan_dir=plan_dir,
-            camera=camera,
-            dem=dem,
-            ground_elevation_m=ground_elevation_m,
-            takeoff_elevation_m=takeoff_elevation_m,
-            progress=_in_percent(advance),
+    try:
+        with progress(
+            "reading images", 0 if is_plan_folder(source) else 100, enabled=show_progress
+        ) as advance:
+            inputs = gather_inputs(
+                source,
+                plan_dir=plan_dir,
+                camera=camera,
+                dem=dem,
+                ground_elevation_m=ground_elevation_m,
+                takeoff_elevation_m=takeoff_elevation_m,
+                progress=_in_percent(advance),
+            )
+    except NoPositionsError as error:
+        if not pixels or plan_dir is not None or area_file is not None or refly:
+            raise
+        # No position to put the frames on the ground (a kite, a camera without GPS): the pixels
+        # alone say whether they will reconstruct.
+        return _pixels_only(
+            source, error.names, thresholds, match_size_px, out_dir, overwrite, as_json, show_progress
         )
     area = None
     if area_file is not None:
@@ -238,6 +252,7 @@ def command(
             camera_source=inputs.camera_source,
             pixels=pixel_options,
             camera_rough=inputs.camera_confidence == CameraConfidence.EQUIVALENT_35MM.value,
+            detrended=inputs.detrended,
         )
     refly_plan = None
     if refly and result.gaps:
@@ -255,6 +270,56 @@ def command(
     if match_log is not None and not as_json:
         click.echo(f"COLMAP's log of the matching: {match_log}", err=True)
     return result  # sfap.cli exits 1 when it did not pass
+
+
+def _pixels_only(
+    source: Path,
+    names: tuple[str, ...],
+    thresholds: Thresholds,
+    match_size_px: int,
+    out_dir: Path | None,
+    overwrite: bool,
+    as_json: bool,
+    show_progress: bool,
+) -> PixelOnlyCheck:
+    """Images without positions judged on their pixels alone (processing.check_pixels)."""
+    import json
+
+    from planner.outputs import atomic_write_text, json_safe, staged_output_dir
+    from processing.check_pixels import check_pixels_only
+
+    with tempfile.NamedTemporaryFile(prefix="sfap-colmap-match-", suffix=".log", delete=False) as handle:
+        match_log = Path(handle.name)
+    if show_progress:
+        click.echo(
+            f"no positions in the {len(names)} images: judging them on their pixels alone (every pair "
+            f"matched; COLMAP's log: {match_log}); --no-pixels to refuse instead",
+            err=True,
+        )
+    options = PixelOptions(image_dir=source, max_image_size_px=match_size_px, log_path=match_log)
+    result = check_pixels_only(source, names, options, thresholds)
+    data = result.as_dict()
+    if out_dir is not None:
+        with staged_output_dir(out_dir, overwrite=overwrite) as staging:
+            atomic_write_text(staging / "report.json", json.dumps(json_safe(data), indent=2) + "\n")
+            shutil.move(match_log, staging / "colmap-match.log")
+        match_log = out_dir / "colmap-match.log"
+    if as_json:
+        data["report_dir"] = str(out_dir) if out_dir is not None else None
+        click.echo(dumps_json(data))
+        return result
+    click.echo(
+        f"{'PASS' if result.passed else 'FAIL'}: {len(result.names)} frames checked on their pixels alone"
+    )
+    for reason in result.reasons:
+        click.echo(f"  - {reason}")
+    echo_table(result.key_figures())
+    for warning in result.warnings:
+        click.echo(f"warning: {warning}", err=True)
+    if out_dir is not None:
+        click.echo(f"report: {out_dir / 'report.json'}")
+    click.echo(f"COLMAP's log of the matching: {match_log}", err=True)
+    return result
 
 
 def _in_percent(advance: Callable[[int], None]) -> Callable[[int, int], None]:

@@ -440,3 +440,52 @@ def test_seneca_at_53_percent_endlap_is_not_failed_on_its_endlap(tmp_path: Path)
     assert not any("forward overlap" in r or "base-height ratio of consecutive" in r for r in data["reasons"])
     advice = [w for w in data["warnings"] if "measured in the pixels" in w]
     assert advice and "m/s" not in advice[0] and "trigger distance of at most" in advice[0]
+
+
+@pytest.mark.slow  # 40 frames through COLMAP, matched twice (again at the measured scale): 3-5 minutes
+def test_seneca_with_a_camera_2_4x_off_is_judged_at_the_measured_scale(tmp_path: Path) -> None:
+    """The same 40 frames of seneca_half with a camera given whose focal length is 2.4x too long
+    (10.32 mm for 4.3 mm). Oracle: the right camera, from the frames' own EXIF (4.3 mm x 290.4 px
+    per mm = 1249 px at 1800 px wide), gives 5.04 cm at the 62.9 m the tags and the ground of 220 m
+    put the frames at; the wrong one 2.10 cm, footprints 2.4x too small, 0 % endlap. The pixels
+    measure the scale, the footprints come back to it, and no overlap, side overlap or pixel rule
+    fails the block (as none fails it with the right camera)."""
+    folder = tmp_path / "seneca40"
+    folder.mkdir()
+    for path in sorted(SENECA.glob("*.jpg"))[61:101]:
+        shutil.copy(path, folder / path.name)
+    camera = tmp_path / "wrong.toml"
+    camera.write_text(
+        'name = "ELPH 300 HS, focal length 2.4x off"\nsensor_width_mm = 6.1976\nsensor_height_mm = 4.6482\n'
+        "image_width_px = 1800\nimage_height_px = 1350\nfocal_length_mm = 10.32\n",
+        encoding="utf-8",
+    )
+    result = CliRunner().invoke(
+        cli,
+        [
+            "check",
+            str(folder),
+            "--ground-elevation-m",
+            "220",
+            "--camera",
+            str(camera),
+            "--no-progress",
+            "--json",
+        ],
+    )
+    assert result.exit_code in (0, 1), result.output
+    data = json.loads(result.stdout)
+    right_gsd_cm = 100.0 * data["height_agl_m"]["median"] / (4.3 * 290.4)
+    assert right_gsd_cm == pytest.approx(5.04, abs=0.02)
+    scale = data["scale"]
+    assert scale["used"] is True and scale["gsd_cm"]["tagged"] == pytest.approx(right_gsd_cm / 2.4, rel=0.01)
+    assert data["gsd_cm"]["median"] == pytest.approx(right_gsd_cm, rel=0.12)
+    assert scale["focal_px"]["measured"] == pytest.approx(4.3 * 290.4, rel=0.12)
+    assert data["overlap"]["forward_pct"]["median"] > 40.0  # 0 % at the tags' scale
+    assert data["coverage"]["seen_by_at_least_pct"]["1"] > 85.0  # 46 % at the tags' scale
+    assert not any(
+        "forward overlap" in r or "side overlap" in r or "separate parts" in r or "quick reconstruction" in r
+        for r in data["reasons"]
+    ), data["reasons"]
+    said = [w for w in data["warnings"] if "image scale measured in the pixels" in w]
+    assert len(said) == 1 and "either" in said[0]

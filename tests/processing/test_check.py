@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import shutil
 from dataclasses import replace
 from pathlib import Path
@@ -372,8 +373,10 @@ def test_report_folder(garfield_result: CheckResult, tmp_path: Path) -> None:
     assert data["coverage"]["seen_by_at_least_pct"]["1"] == r.seen_pct[1]
     assert len(data["per_frame"]) == 28
     with rasterio.open(out / "coverage.tif") as tif:
-        # A named CRS: Cleveland, Ohio is in UTM zone 17 N.
+        # A named CRS: Cleveland, Ohio is in UTM zone 17 N; report.json names the same one.
         assert tif.crs.to_epsg() == 32617
+        assert data["area"]["crs"].split(" ")[0] == "EPSG:32617"
+        assert data["area"]["extent_m"] == pytest.approx(list(tif.bounds), abs=2 * r.cell_m)
         assert tif.nodata == -1 and tif.descriptions[0].startswith("views")
         assert tif.transform.a == r.cell_m
         values = tif.read(1)
@@ -569,3 +572,35 @@ def test_a_diagonal_sliver_is_one_gap_with_its_true_area() -> None:
     assert len(gaps) == 1
     # Strip between y = x and y = x + 0.6, clipped to the square: 0.6 x 100 minus two corner triangles.
     assert gaps[0].area == pytest.approx(0.6 * 100 - 0.6**2 / 2 * 2 / 2, rel=1e-3)
+
+
+def test_a_long_list_of_frames_left_out_is_one_summarised_line() -> None:
+    """A card of 123 placeholder positions, 20 climbing frames, 3 on the ground and 2 in transit
+    (the issue's card gave a 10,916-character line): one line of a few hundred characters, every
+    kind counted, the counts adding up, the full list left to report.json."""
+    from processing.survey_frames import left_out_summary
+
+    left = (
+        [
+            (f"IMG_{k:04d}.JPG", f"placeholder position at 0/0 (lat 0.0000000, lon 0.{k:07d}): no fix")
+            for k in range(123)
+        ]
+        + [
+            (f"C{k:03d}.JPG", f"climbing: {30 + k:.1f} m above the ground, -{k}.0 m off the cruise")
+            for k in range(20)
+        ]
+        + [
+            (f"G{k}.JPG", f"on the ground: {k:.1f} m above it (take-off, landing or the pad)")
+            for k in range(3)
+        ]
+        + [(f"T{k}.JPG", f"in transit: {900 + k} m from the nearest other frame") for k in range(2)]
+    )
+    line = left_out_summary(left)
+    assert len(line) < 800, len(line)
+    counts = {
+        kind: int(n)
+        for n, kind in re.findall(r"(\d+) (placeholder position at 0/0|climbing|on the ground) \(", line)
+    }
+    assert counts == {"placeholder position at 0/0": 123, "climbing": 20, "on the ground": 3}
+    assert "2 in transit (T0.JPG, T1.JPG;" in line and "report.json" in line
+    assert "IMG_0003.JPG" not in line  # three names a kind

@@ -108,6 +108,10 @@ def test_with_drifting_altitudes_the_climb_is_told_on_the_detrended_altitudes() 
     assert len(choice.warnings) == 1
     assert "GPS altitude drifts by +100.0 m" in choice.warnings[0]
     assert "detrended altitudes" in choice.warnings[0] and "one height" in choice.warnings[0]
+    # The trend removed is carried, typed, to the check (which then blames a scale that disagrees
+    # on the heights); without drift there is none.
+    assert choice.detrended is not None and choice.detrended.drift_m == pytest.approx(100.0, rel=0.02)
+    assert ground_from_options(frames=flight()[0], ground_elevation_m=GROUND_M).detrended is None
     # One flying height: every survey frame at the same height once detrended.
     heights = choice.frames.alt_m - GROUND_M
     assert float(np.ptp(heights)) == pytest.approx(0.0, abs=1e-6)
@@ -141,6 +145,11 @@ def test_drifting_altitudes_with_the_true_ground_do_not_make_the_check_refuse(tm
     assert result.exit_code == (0 if data["passed"] else 1), output
     said = [w for w in data["warnings"] if "GPS altitude drifts by +100.0 m" in w]
     assert len(said) == 1 and "detrended altitudes" in said[0] and "one height" in said[0], data["warnings"]
+    # What `sfap check` hands run_check: the trend itself, not a sentence to search.
+    from processing.check_inputs import gather_inputs
+
+    inputs = gather_inputs(card, ground_elevation_m=GARFIELD_GROUND_M)
+    assert inputs.detrended is not None and inputs.detrended.drift_m == pytest.approx(100.0, rel=0.1)
 
 
 @settings(max_examples=25, deadline=None)

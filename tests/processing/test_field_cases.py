@@ -413,9 +413,18 @@ def test_halved_frames_of_a_database_camera_keep_its_sensor_and_lens() -> None:
 
 
 def test_a_set_without_gps_says_geotag_first() -> None:
-    result = CliRunner().invoke(cli, ["check", str(COPR), "--ground-elevation-m", "0", "--no-progress"])
+    # --no-pixels: without positions and without the pixels there is nothing to judge.
+    result = CliRunner().invoke(
+        cli, ["check", str(COPR), "--ground-elevation-m", "0", "--no-progress", "--no-pixels"]
+    )
     assert result.exit_code == 2
     assert "no GPS positions: geotag first" in result.output
+    # The library says so with a typed error carrying the images read (the pixel check's input).
+    from processing.errors import NoPositionsError
+
+    with pytest.raises(NoPositionsError) as raised:
+        read_image_frames(COPR)
+    assert len(raised.value.names) == 41 and "IMG_0022.jpg" in raised.value.names
 
 
 @pytest.mark.parametrize(("unit", "per_unit_mm"), [("2", 25.4), ("3", 10.0), ("4", 1.0)])

@@ -99,6 +99,12 @@ def test_a_report_map_states_its_origin_and_has_a_north_arrow_and_a_true_scale_b
     minx, miny, _, _ = result.area_xy.bounds  # type: ignore[attr-defined]
     assert abs(x - minx) < 1.0 and abs(y - miny) < 1.0  # 5 decimals of a degree: about 1 m
     assert "transverse Mercator" in caption or "EPSG:" in caption
+    # One CRS for the check's files, named on every map: the UTM zone of the area's longitude.
+    zone = int((lon + 180.0) // 6.0) + 1
+    assert (
+        f"files (coverage.tif, report.json) are in EPSG:{32600 + zone if lat >= 0 else 32700 + zone}"
+        in caption
+    )
 
     arrow = _north_arrow(ax)
     (tx, ty), (sx, sy) = arrow.xy, arrow.xyann  # type: ignore[attr-defined]
