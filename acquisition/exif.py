@@ -711,13 +711,14 @@ class _Split:
 
 def _split_header(read_at: Any, size: int, name: str) -> _Split:
     """Find the first SOS marker by walking the header segments; ``read_at(offset, n)`` reads."""
-    buffer = bytearray(read_at(0, min(size, _HEADER_CHUNK)))
+    # bytes, grown by concatenation when a header runs past the first chunk (rare): most headers
+    # are parsed from the first read without copying it again
+    buffer: bytes = bytes(read_at(0, min(size, _HEADER_CHUNK)))
 
     def need(end: int) -> None:
+        nonlocal buffer
         if end > len(buffer) and len(buffer) < size:
-            buffer.extend(
-                read_at(len(buffer), min(size, max(end, len(buffer) + _HEADER_CHUNK)) - len(buffer))
-            )
+            buffer += read_at(len(buffer), min(size, max(end, len(buffer) + _HEADER_CHUNK)) - len(buffer))
 
     if not buffer.startswith(b"\xff\xd8"):
         raise GeotagError(f"{name}: not a JPEG file (no SOI marker); remove it from the folder")
