@@ -211,31 +211,17 @@ class _Tiff:
             raise UnsupportedHeaderError("value outside the TIFF block")
         return at, length
 
-    def text(self, type_: int, count: int, entry: int) -> str:
-        at, length = self.value_span(type_, count, entry)
-        raw = self.data[at : at + length]
-        if type_ not in (1, 2, 7):
-            raise UnsupportedHeaderError("text tag of a numeric type")
-        return raw.split(b"\x00", 1)[0].decode("latin-1")
-
-    def number_text(self, type_: int, count: int, entry: int) -> str:
-        """exiv2's text of a numeric value: integers, 'num/den' rationals, space-separated."""
-        at, _ = self.value_span(type_, count, entry)
-        if type_ in (5, 10):
-            rational = "I" if type_ == 5 else "i"
-            values = _layout(f"{self.order}{2 * count}{rational}").unpack_from(self.data, at)
-            return " ".join(map("{}/{}".format, values[0::2], values[1::2]))
-        code = _NUMBER_CODES.get(type_)
-        if code is None:
-            raise UnsupportedHeaderError(f"numeric tag of type {type_}")
-        return " ".join(map(str, _layout(f"{self.order}{count}{code}").unpack_from(self.data, at)))
-
 
 def _read_ifd(tiff: _Tiff, at: int, wanted: Mapping[int, str], out: dict[str, str]) -> dict[int, int]:
-    """Read the wanted tags of one IFD into ``out``; returns {tag: entry offset} of every tag."""
+    """Read the wanted tags of one IFD into ``out``; returns {tag: entry offset} of every tag.
+
+    Text tags are decoded whatever their stored type of 1, 2 or 7 (to the first NUL); numbers as
+    exiv2 writes them: integers, 'num/den' rationals, space-separated."""
     where: dict[int, int] = {}
+    data, order = tiff.data, tiff.order
     fields = tiff.fields(at)
     first = at + 2
+    offset = _layout(order + "I").unpack_from
     for k in range(0, len(fields), 3):
         tag = fields[k]
         entry = first + 4 * k  # the (k / 3)th entry, 12 bytes each
@@ -243,10 +229,26 @@ def _read_ifd(tiff: _Tiff, at: int, wanted: Mapping[int, str], out: dict[str, st
         key = wanted.get(tag)
         if key is None:
             continue
+        type_, count = fields[k + 1], fields[k + 2]
+        size = _TYPE_SIZE.get(type_)
+        if size is None:
+            raise UnsupportedHeaderError(f"TIFF type {type_}")
+        length = size * count
+        value_at = entry + 8 if length <= 4 else offset(data, entry + 8)[0]  # inside: the IFD fits
+        if value_at + length > len(data):
+            raise UnsupportedHeaderError("value outside the TIFF block")
         if key in _TEXT_KEYS:
-            out[key] = tiff.text(fields[k + 1], fields[k + 2], entry)
+            if type_ not in (1, 2, 7):
+                raise UnsupportedHeaderError("text tag of a numeric type")
+            out[key] = data[value_at : value_at + length].split(b"\x00", 1)[0].decode("latin-1")
+        elif type_ == 5 or type_ == 10:
+            values = _layout(f"{order}{2 * count}{'I' if type_ == 5 else 'i'}").unpack_from(data, value_at)
+            out[key] = " ".join(map("{}/{}".format, values[0::2], values[1::2]))
         else:
-            out[key] = tiff.number_text(fields[k + 1], fields[k + 2], entry)
+            code = _NUMBER_CODES.get(type_)
+            if code is None:
+                raise UnsupportedHeaderError(f"numeric tag of type {type_}")
+            out[key] = " ".join(map(str, _layout(f"{order}{count}{code}").unpack_from(data, value_at)))
     return where
 
 
