@@ -40,7 +40,6 @@ from collections.abc import Callable, Iterable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from datetime import UTC, datetime
-from fractions import Fraction
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -391,7 +390,7 @@ def _read_file_maps(
     """The EXIF and XMP maps, the pixel size of one JPEG, from its metadata segments only, and
     the header's snapshot when the Python reader read it (None when exiv2 did).
     Raises :class:`GeotagError` when the file is unreadable."""
-    with open(path, "rb") as handle:
+    with open(path, "rb", buffering=0) as handle:  # read with pread only: no buffer
         fd = handle.fileno()
         head = os.pread(fd, 2, 0)
         if head != b"\xff\xd8":
@@ -624,8 +623,9 @@ def _exif_gps_values(tag: GeoTag) -> dict[str, str | None]:
         values["Exif.GPSInfo.GPSAltitude"] = None
     if tag.time_utc_s is not None:
         moment = datetime.fromtimestamp(tag.time_utc_s, tz=UTC)
-        seconds = Fraction(moment.second * 1_000_000 + moment.microsecond, 1_000_000)
-        millis = round(seconds * 1000)
+        # milliseconds, rounded half to even (as round() of the exact fraction of microseconds)
+        millis, rest = divmod(moment.second * 1_000_000 + moment.microsecond, 1000)
+        millis += rest > 500 or (rest == 500 and millis % 2 == 1)
         values["Exif.GPSInfo.GPSDateStamp"] = moment.strftime("%Y:%m:%d")
         values["Exif.GPSInfo.GPSTimeStamp"] = f"{moment.hour}/1 {moment.minute}/1 {millis}/1000"
     else:
@@ -696,6 +696,7 @@ def _xmp_coordinate(value_deg: float, positive: str, negative: str) -> str:
 # the whole file; the stub's tail is checked to come back unchanged.
 
 _HEADER_CHUNK = 1 << 16
+_CLOEXEC = getattr(os, "O_CLOEXEC", 0)
 _STUB_SCAN = b"\x00\xff\xd9"
 
 
@@ -711,13 +712,14 @@ class _Split:
 
 def _split_header(read_at: Any, size: int, name: str) -> _Split:
     """Find the first SOS marker by walking the header segments; ``read_at(offset, n)`` reads."""
-    buffer = bytearray(read_at(0, min(size, _HEADER_CHUNK)))
+    # bytes, grown by concatenation when a header runs past the first chunk (rare): most headers
+    # are parsed from the first read without copying it again
+    buffer: bytes = bytes(read_at(0, min(size, _HEADER_CHUNK)))
 
     def need(end: int) -> None:
+        nonlocal buffer
         if end > len(buffer) and len(buffer) < size:
-            buffer.extend(
-                read_at(len(buffer), min(size, max(end, len(buffer) + _HEADER_CHUNK)) - len(buffer))
-            )
+            buffer += read_at(len(buffer), min(size, max(end, len(buffer) + _HEADER_CHUNK)) - len(buffer))
 
     if not buffer.startswith(b"\xff\xd8"):
         raise GeotagError(f"{name}: not a JPEG file (no SOI marker); remove it from the folder")
@@ -875,13 +877,16 @@ def _write_over_copy(target: Path, header: bytes, src_fd: int, split: _Split, co
     empty, written whole). The file is removed when that fails (it holds the frame without its
     tags)."""
     try:
-        with target.open("r+b", buffering=0) as out:
+        out = os.open(target, os.O_RDWR | _CLOEXEC)
+        try:
             if copied.identity is not None and len(header) == split.sos_offset:
-                if os.pwrite(out.fileno(), header, 0) != len(header):
+                if os.pwrite(out, header, 0) != len(header):
                     raise GeotagError("the new header could not be written whole")
             else:
-                out.truncate(0)
-                _write_out(out.fileno(), header, src_fd, split)
+                os.ftruncate(out, 0)
+                _write_out(out, header, src_fd, split)
+        finally:
+            os.close(out)
     except BaseException:
         with contextlib.suppress(FileNotFoundError):
             target.unlink()
@@ -933,7 +938,7 @@ def _write_file(
     warnings: list[str] = []
     same = os.path.abspath(src) == os.path.abspath(dst)
     target = Path(dst)
-    with open(src, "rb") as source:
+    with open(src, "rb", buffering=0) as source:  # read with pread only: no buffer
         fd = source.fileno()
         stat = os.fstat(fd)
         size = stat.st_size

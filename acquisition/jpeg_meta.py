@@ -145,6 +145,23 @@ def _find(header: bytes, segs: list[tuple[int, int, int]], ident: bytes) -> list
 # TIFF
 
 
+#: Compiled struct layouts by format (IFDs of the same length, values of the same count recur
+#: from frame to frame); bounded, so that a hostile header cannot grow it without end.
+_STRUCTS: dict[str, struct.Struct] = {}
+
+
+def _layout(fmt: str) -> struct.Struct:
+    layout = _STRUCTS.get(fmt)
+    if layout is None:
+        layout = struct.Struct(fmt)
+        if len(_STRUCTS) < 512:
+            _STRUCTS[fmt] = layout
+    return layout
+
+
+_NUMBER_CODES = {1: "B", 3: "H", 4: "I", 6: "b", 8: "h", 9: "i"}
+
+
 class _Tiff:
     def __init__(self, data: bytes) -> None:
         if data[:4] == b"II*\x00":
@@ -168,15 +185,20 @@ class _Tiff:
         value: int = struct.unpack_from(self.order + "I", self.data, at)[0]
         return value
 
-    def entries(self, at: int) -> list[tuple[int, int, int, int]]:
-        """(tag, type, count, entry offset) of the IFD at ``at``."""
+    def fields(self, at: int) -> tuple[int, ...]:
+        """(tag, type, count) of each entry of the IFD at ``at``, flat, in the IFD's order."""
         if at < 8 or at + 2 > len(self.data):
             raise UnsupportedHeaderError("IFD offset")
         n = self.u16(at)
         if at + 2 + 12 * n + 4 > len(self.data):
             raise UnsupportedHeaderError("IFD runs past the TIFF block")
-        fields = struct.unpack_from(self.order + "HHI4x" * n, self.data, at + 2)
-        return [(fields[3 * k], fields[3 * k + 1], fields[3 * k + 2], at + 2 + 12 * k) for k in range(n)]
+        values: tuple[int, ...] = _layout(self.order + "HHI4x" * n).unpack_from(self.data, at + 2)
+        return values
+
+    def entries(self, at: int) -> list[tuple[int, int, int, int]]:
+        """(tag, type, count, entry offset) of the IFD at ``at``."""
+        fields = self.fields(at)
+        return [(fields[k], fields[k + 1], fields[k + 2], at + 2 + 4 * k) for k in range(0, len(fields), 3)]
 
     def value_span(self, type_: int, count: int, entry: int) -> tuple[int, int]:
         """(offset, length) of an entry's value bytes."""
@@ -189,37 +211,44 @@ class _Tiff:
             raise UnsupportedHeaderError("value outside the TIFF block")
         return at, length
 
-    def text(self, type_: int, count: int, entry: int) -> str:
-        at, length = self.value_span(type_, count, entry)
-        raw = self.data[at : at + length]
-        if type_ not in (1, 2, 7):
-            raise UnsupportedHeaderError("text tag of a numeric type")
-        return raw.split(b"\x00", 1)[0].decode("latin-1")
-
-    def number_text(self, type_: int, count: int, entry: int) -> str:
-        """exiv2's text of a numeric value: integers, 'num/den' rationals, space-separated."""
-        at, _ = self.value_span(type_, count, entry)
-        o = self.order
-        if type_ in (5, 10):
-            code = "I" if type_ == 5 else "i"
-            values = struct.unpack_from(f"{o}{2 * count}{code}", self.data, at)
-            return " ".join(f"{values[k]}/{values[k + 1]}" for k in range(0, len(values), 2))
-        codes = {1: "B", 3: "H", 4: "I", 6: "b", 8: "h", 9: "i"}
-        if type_ not in codes:
-            raise UnsupportedHeaderError(f"numeric tag of type {type_}")
-        return " ".join(str(v) for v in struct.unpack_from(f"{o}{count}{codes[type_]}", self.data, at))
-
 
 def _read_ifd(tiff: _Tiff, at: int, wanted: Mapping[int, str], out: dict[str, str]) -> dict[int, int]:
-    """Read the wanted tags of one IFD into ``out``; returns {tag: entry offset} of every tag."""
+    """Read the wanted tags of one IFD into ``out``; returns {tag: entry offset} of every tag.
+
+    Text tags are decoded whatever their stored type of 1, 2 or 7 (to the first NUL); numbers as
+    exiv2 writes them: integers, 'num/den' rationals, space-separated."""
     where: dict[int, int] = {}
-    for tag, type_, count, entry in tiff.entries(at):
+    data, order = tiff.data, tiff.order
+    fields = tiff.fields(at)
+    first = at + 2
+    offset = _layout(order + "I").unpack_from
+    for k in range(0, len(fields), 3):
+        tag = fields[k]
+        entry = first + 4 * k  # the (k / 3)th entry, 12 bytes each
         where[tag] = entry
         key = wanted.get(tag)
         if key is None:
             continue
-        read = tiff.text if key in _TEXT_KEYS else tiff.number_text
-        out[key] = read(type_, count, entry)
+        type_, count = fields[k + 1], fields[k + 2]
+        size = _TYPE_SIZE.get(type_)
+        if size is None:
+            raise UnsupportedHeaderError(f"TIFF type {type_}")
+        length = size * count
+        value_at = entry + 8 if length <= 4 else offset(data, entry + 8)[0]  # inside: the IFD fits
+        if value_at + length > len(data):
+            raise UnsupportedHeaderError("value outside the TIFF block")
+        if key in _TEXT_KEYS:
+            if type_ not in (1, 2, 7):
+                raise UnsupportedHeaderError("text tag of a numeric type")
+            out[key] = data[value_at : value_at + length].split(b"\x00", 1)[0].decode("latin-1")
+        elif type_ == 5 or type_ == 10:
+            values = _layout(f"{order}{2 * count}{'I' if type_ == 5 else 'i'}").unpack_from(data, value_at)
+            out[key] = " ".join(map("{}/{}".format, values[0::2], values[1::2]))
+        else:
+            code = _NUMBER_CODES.get(type_)
+            if code is None:
+                raise UnsupportedHeaderError(f"numeric tag of type {type_}")
+            out[key] = " ".join(map(str, _layout(f"{order}{count}{code}").unpack_from(data, value_at)))
     return where
 
 
@@ -257,18 +286,41 @@ def _packet_text(payload: bytes) -> str:
 def xmp_map(packet: str) -> dict[str, Any]:
     """The simple properties (and the first item of arrays) of the namespaces in XMP_PREFIXES,
     as pyexiv2's key -> text (arrays as lists)."""
+    return _parsed_xmp_map(packet.strip().encode("utf-8"))
+
+
+def payload_xmp_map(payload: bytes) -> dict[str, Any]:
+    """:func:`xmp_map` of an APP1 XMP segment's payload (identifier included), parsed from its
+    bytes as they stand when that is the same as decoding and encoding them again: the packet
+    (stripped of ASCII white space) runs from ``<`` to ``>`` and is not an XML declaration (so
+    expat reads it as UTF-8, and rejects what is not UTF-8 where the decoding would). Sparing the
+    round trip through a Python string matters: a packet that begins ``<?xpacket begin="\ufeff"``
+    decodes to two bytes a character, which cost a fifth of a Sequoia frame's parse."""
+    data = payload[len(XMP_ID) :].strip()
+    if data[:1] != b"<" or data[-1:] != b">" or data.startswith(b"<?xml"):
+        return xmp_map(_packet_text(payload))
+    return _parsed_xmp_map(data)
+
+
+#: Element and attribute names ({uri}local, as ElementTree gives them) -> pyexiv2 key, or None
+#: outside the namespaces read: a camera's few dozen names, bounded against a hostile packet.
+_KEYS: dict[str, str | None] = {}
+
+
+def _parsed_xmp_map(data: bytes) -> dict[str, Any]:
     try:
-        root = ET.fromstring(packet.strip().encode("utf-8"))
+        root = ET.fromstring(data)
     except ET.ParseError as error:
         raise UnsupportedHeaderError(f"XMP: {error}") from None
     out: dict[str, Any] = {}
+    keys = _KEYS
     for description in root.iter(f"{{{_RDF}}}Description"):
         for name, value in description.attrib.items():
-            key = _key_of(name)
+            key = keys[name] if name in keys else _key_of(name)
             if key is not None:
                 _put(out, key, value)
         for child in description:
-            key = _key_of(child.tag)
+            key = keys[child.tag] if child.tag in keys else _key_of(child.tag)
             if key is None:
                 continue
             if len(child) == 0:
@@ -287,11 +339,14 @@ def xmp_map(packet: str) -> dict[str, Any]:
 
 
 def _key_of(name: str) -> str | None:
-    if not name.startswith("{"):
-        return None
-    uri, _, local = name[1:].partition("}")
-    prefix = XMP_PREFIXES.get(uri)
-    return None if prefix is None else f"Xmp.{prefix}.{local}"
+    key = None
+    if name.startswith("{"):
+        uri, _, local = name[1:].partition("}")
+        prefix = XMP_PREFIXES.get(uri)
+        key = None if prefix is None else f"Xmp.{prefix}.{local}"
+    if len(_KEYS) < 4096:
+        _KEYS[name] = key
+    return key
 
 
 def _put(out: dict[str, Any], key: str, value: Any) -> None:
@@ -321,7 +376,7 @@ def header_maps(header: bytes) -> tuple[dict[str, str], dict[str, Any], int | No
     if len(exifs) > 1 or len(xmps) > 1:
         raise UnsupportedHeaderError("several EXIF or XMP segments")
     exif = exif_map(header[exifs[0][0] + 4 + len(EXIF_ID) : exifs[0][1]]) if exifs else {}
-    xmp = xmp_map(_packet_text(header[xmps[0][0] + 4 : xmps[0][1]])) if xmps else {}
+    xmp = payload_xmp_map(header[xmps[0][0] + 4 : xmps[0][1]]) if xmps else {}
     width, height = sof_size(header, segs)
     return exif, xmp, width, height
 
@@ -552,8 +607,10 @@ def patch_header(
         pos = end
     out.append(header[pos:])
     new_header = b"".join(out)
-    # Read back: what was asked is there, and nothing else changed.
-    new_exif, new_xmp, _, _ = header_maps(new_header)
+    # Read back: what was asked is there, and nothing else changed. Only the new segments are
+    # parsed (what header_maps would find in the new header: every other segment is the old one).
+    new_exif = exif_map(pieces[0][2][4 + len(EXIF_ID) :])
+    new_xmp = payload_xmp_map(pieces[-1][2][4:]) if len(pieces) > 1 else {}
     want_exif = {k: v for k, v in old_exif.items() if not k.startswith("Exif.GPSInfo.")} | dict(gps)
     want_xmp = {k: v for k, v in ({**old_xmp, **xmp_changes}).items() if v is not None}
     if new_exif != want_exif or new_xmp != want_xmp:

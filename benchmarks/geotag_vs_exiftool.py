@@ -17,16 +17,22 @@ Timed, each as the whole process a user runs (start-up included), in alternating
 - ``exiftool -q -geotag track.csv '-Geotime<${SubSecDateTimeOriginal}+00:00' -o OUT/ IN``
 - ``cp -r IN OUT``
 
+With ``--baseline DIR`` (a tree of another commit, e.g. main: ``git archive main | tar -x -C DIR``,
+then ``python -m compileall -q DIR/acquisition DIR/planner DIR/sfap``), also this tree's ``sfap
+geotag`` against DIR's, each run as ``env PYTHONPATH=TREE sfap geotag ...`` in alternating pairs,
+and every output file of the two compared byte for byte.
+
 Checked after the runs: every output's compressed image data (SOS to EOI) equals its input's, for
 both tools, and the positions the two tools wrote agree (largest difference, metres).
 
-Run: .venv/bin/python benchmarks/geotag_vs_exiftool.py --set full [--pairs 5] [--against both|exiftool|cp]
-[--count N] [--keep DIR]
+Run: .venv/bin/python benchmarks/geotag_vs_exiftool.py --set full [--pairs 5]
+[--against both|exiftool|cp|none] [--baseline DIR] [--count N] [--keep DIR]
 """
 
 from __future__ import annotations
 
 import argparse
+import filecmp
 import io
 import math
 import os
@@ -177,7 +183,13 @@ def main() -> None:
     parser.add_argument("--count", type=int, default=None, help="frames (default: the set's)")
     parser.add_argument("--pairs", type=int, default=5)
     parser.add_argument(
-        "--against", choices=("both", "exiftool", "cp"), default="both", help="which peers to time"
+        "--against", choices=("both", "exiftool", "cp", "none"), default="both", help="which peers to time"
+    )
+    parser.add_argument(
+        "--baseline",
+        type=Path,
+        default=None,
+        help="a tree of another commit (its modules compiled): time this sfap against that one too",
     )
     parser.add_argument("--keep", type=Path, default=None, help="work folder to keep (default: temporary)")
     parser.add_argument(
@@ -246,6 +258,8 @@ def main() -> None:
     if args.against in ("both", "cp"):
         against_cp = compare(f"sfap vs cp -r ({args.set})", sfap_side, cp_side, pairs=args.pairs)
         print(against_cp.report(), flush=True)
+    if args.baseline is not None:
+        against_baseline(args, images, track, work, sfap)
     if not out_sfap.exists():
         sfap_side.run()
 
@@ -271,6 +285,37 @@ def main() -> None:
     in_process(images, out_sfap, names, work)
     if args.keep is None:
         shutil.rmtree(work, ignore_errors=True)
+
+
+def against_baseline(args: argparse.Namespace, images: Path, track: Path, work: Path, sfap: Path) -> None:
+    """This tree's sfap against the baseline tree's, paired; then one more run of each into the
+    same folder (the report names it), their outputs compared file by file."""
+    here = Path(__file__).resolve().parents[1]
+    baseline = args.baseline.resolve()
+    out, kept = work / "out_pair", work / "out_baseline"
+
+    def side(tree: Path) -> Side:
+        command = ["env", f"PYTHONPATH={tree}", str(sfap), "geotag", str(images), "--log", str(track)]
+        command += ["-o", str(out), "--offset-s", "0", "--no-progress"]
+        return Side(f"sfap geotag ({tree.name})", command, before=_remover(out, args.settle_s))
+
+    this, base = side(here), side(baseline)
+    result = compare(f"sfap vs sfap at {baseline} ({args.set})", this, base, pairs=args.pairs)
+    print(result.report(), flush=True)
+    base.run()
+    _remover(kept)()
+    out.rename(kept)
+    this.run()
+    names = sorted(p.name for p in out.iterdir())
+    same_names = names == sorted(p.name for p in kept.iterdir())
+    _, mismatch, errors = filecmp.cmpfiles(out, kept, names, shallow=False)
+    print(
+        f"outputs of the two trees: {len(names) - len(mismatch) - len(errors)}/{len(names)} files "
+        f"byte-identical{'' if same_names else ' (the folders hold different names)'}"
+        + (f"; differ: {', '.join((mismatch + errors)[:5])}" if mismatch or errors else "")
+    )
+    for folder in (out, kept):
+        _remover(folder)()
 
 
 def _copy_floor(images: Path, names: list[str], out: Path) -> None:

@@ -62,6 +62,10 @@ def _mavlink_frame_len(data: bytes, at: int) -> int | None:
 
 def _looks_like_tlog(data: bytes) -> bool:
     """A receive time and a MAVLink frame, twice in a row, within the first few KB."""
+    # A receive time in range is below 2**56: its first (big-endian) byte is zero. Text has no
+    # zero byte, so a CSV or GPX track is told apart without the walk below.
+    if data.find(b"\x00", 0, max(0, min(len(data) - 9, 4096))) < 0:
+        return False
     for start in range(min(len(data) - 9, 4096)):
         (t_us,) = struct.unpack_from(">Q", data, start)
         if not _TLOG_MIN_US <= t_us <= _TLOG_MAX_US:

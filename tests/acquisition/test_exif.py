@@ -11,7 +11,7 @@ import exifread
 import numpy as np
 import pyexiv2
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from jpeg_edits import without_xmp_padding
 from PIL import Image
@@ -663,16 +663,17 @@ def test_a_frame_read_once_is_written_from_what_was_read(
 ) -> None:
     """Geotag reads every header for its capture time, then writes: the write uses that read
     (the header bytes re-read in one call, its maps not parsed again) and gives the same bytes
-    as a write that reads the header afresh; only the read-back parses the new header."""
+    as a write that reads the header afresh; only the read-back parses the new header (its XMP
+    packet parsed once a frame, against twice without the read)."""
     from acquisition import jpeg_meta
 
     sources = sorted(GARFIELD.glob("*.JPG"))
     parses: list[int] = []
-    real_maps = jpeg_meta.header_maps
+    real_parse = jpeg_meta._parsed_xmp_map
 
-    def counting(header: bytes):  # type: ignore[no-untyped-def]
+    def counting(data: bytes):  # type: ignore[no-untyped-def]
         parses.append(1)
-        return real_maps(header)
+        return real_parse(data)
 
     for use_seen in (False, True):
         out = tmp_path / str(use_seen)
@@ -690,9 +691,9 @@ def test_a_frame_read_once_is_written_from_what_was_read(
                 )
             )
         parses.clear()
-        monkeypatch.setattr(jpeg_meta, "header_maps", counting)
+        monkeypatch.setattr(jpeg_meta, "_parsed_xmp_map", counting)
         results = exif.write_geotags(jobs, workers=1, atomic=False)
-        monkeypatch.setattr(jpeg_meta, "header_maps", real_maps)
+        monkeypatch.setattr(jpeg_meta, "_parsed_xmp_map", real_parse)
         assert all(r.written for r in results)
         # without the read: the header parsed before the patch and after; with it: after only
         assert len(parses) == (1 if use_seen else 2) * len(sources)
@@ -814,3 +815,91 @@ def test_a_position_alone_also_keeps_the_image_data_in_place(tmp_path: Path) -> 
     written = (tmp_path / "out.jpg").read_bytes()
     assert exif._split_bytes(written, "out").sos_offset == exif._split_bytes(data, "in").sos_offset
     assert exif.read_tags(tmp_path / "out.jpg").gps_lon_deg == pytest.approx(2.5)
+
+
+# ---------------------------------------------------------------------------- XMP read from its bytes
+
+
+def _garfield_xmp_payload() -> bytes:
+    from acquisition import jpeg_meta
+
+    header = exif._split_bytes(GARFIELD_FIRST.read_bytes(), "garfield").header
+    (start, end) = jpeg_meta._find(header, jpeg_meta.segments(header), jpeg_meta.XMP_ID)[0]
+    return header[start + 4 : end]
+
+
+def _map_or_error(read):  # type: ignore[no-untyped-def]
+    from acquisition import jpeg_meta
+
+    try:
+        return read()
+    except (jpeg_meta.UnsupportedHeaderError, UnicodeDecodeError):
+        return "error"
+
+
+_EDGES = [
+    b"",
+    b" \r\n\t",
+    b"\x0b\x0c",
+    b"\x1c",  # white space to str.strip, not to bytes.strip
+    "\u00a0".encode(),
+    b"\xef\xbb\xbf",
+    b"<?xml version='1.0' encoding='ISO-8859-1'?>",
+    b"<?xml version='1.0'?>",
+    b"\xe9",  # Latin-1, not UTF-8
+    b"\xed\xa0\x80",  # a UTF-16 surrogate in UTF-8 form
+    b"\xc0\xaf",  # an overlong form
+    b"&#xA;",
+    b"&amp;",
+]
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    head=st.sampled_from(_EDGES),
+    tail=st.sampled_from(_EDGES),
+    inserts=st.lists(st.tuples(st.floats(0.0, 1.0), st.sampled_from(_EDGES)), max_size=3),
+    in_values=st.booleans(),
+)
+@example(head=_EDGES[6], tail=b"", inserts=[(0.5, b"\xe9")], in_values=True)  # Latin-1, declared
+@example(head=b"", tail=b"\x1c", inserts=[], in_values=False)
+@example(head="\u00a0".encode(), tail=b"", inserts=[], in_values=False)
+def test_xmp_read_from_bytes_is_the_decoded_packets_read(
+    head: bytes, tail: bytes, inserts: list[tuple[float, bytes]], in_values: bool
+) -> None:
+    """payload_xmp_map parses the segment's bytes without decoding them into a string and back:
+    whatever the bytes (white space str.strip removes and bytes.strip does not, a byte-order
+    mark, an XML declaration naming another encoding, bytes that are not UTF-8, anywhere or
+    inside attribute values), it gives what reading the decoded packet gives (the map, or an
+    error either way)."""
+    import re
+
+    from acquisition import jpeg_meta
+
+    packet = _garfield_xmp_payload()[len(jpeg_meta.XMP_ID) :]
+    values = [m.end() for m in re.finditer(rb'="', packet)]
+    for where, piece in sorted(inserts, reverse=True):
+        at = values[int(where * (len(values) - 1))] if in_values else int(where * len(packet))
+        packet = packet[:at] + piece + packet[at:]
+    packet = head + packet + tail
+    payload = jpeg_meta.XMP_ID + packet
+    fast = _map_or_error(lambda: jpeg_meta.payload_xmp_map(payload))
+    decoded = _map_or_error(lambda: jpeg_meta.xmp_map(packet.decode("utf-8")))
+    assert fast == decoded
+
+
+def test_a_real_xmp_packet_is_read_without_decoding_it(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A real packet (Sequoia: it begins with a byte-order mark, which makes its decoded text two
+    bytes a character) is parsed from its bytes, and read as exiv2 reads it."""
+    from acquisition import jpeg_meta
+
+    payload = _garfield_xmp_payload()
+    with monkeypatch.context() as patched:
+        patched.setattr(jpeg_meta, "_packet_text", lambda payload: pytest.fail("decoded"))
+        read = jpeg_meta.payload_xmp_map(payload)
+    image = pyexiv2.Image(str(GARFIELD_FIRST))
+    try:
+        exiv2 = image.read_xmp()
+    finally:
+        image.close()
+    assert read and all(exiv2[key] == value for key, value in read.items())

@@ -490,3 +490,41 @@ def test_an_altitude_column_the_layout_cannot_read_is_said(tmp_path: Path) -> No
     log = read_log(path)
     assert log.positions is not None and log.positions.alt_amsl_m is None
     assert any("alt_baro_ft" in w and "no altitude" in w for w in log.warnings), log.warnings
+
+
+# ------------------------------------------------------------------ the forms checked by their characters
+
+
+@settings(max_examples=400, deadline=None)
+@given(st.lists(st.text(alphabet="0123456789+-.e \n\u0663", max_size=6), max_size=12))
+def test_decimal_column_takes_exactly_the_plain_decimal_form(cells: list[str]) -> None:
+    """decimal_column checks the form by the cells' characters and float(): it takes a column
+    exactly when every cell is a plain decimal as the form's regular expression (the grammar of
+    the docstring) writes it, and then gives float() of each cell."""
+    import re
+
+    plain = re.compile(r"[-+]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)")
+    column = decimal_column(cells)
+    if all(plain.fullmatch(c) for c in cells):
+        assert _same_bits(column, [float(c) for c in cells])
+    else:
+        assert column is None
+
+
+@settings(max_examples=400, deadline=None)
+@given(st.text(alphabet='ab1.,;" \t\n\r\x00', max_size=60))
+@example('h\n"a,b",c\n')
+@example("h\r\na,b\r\n")
+@example("h\n\n, ,\na,,\n")
+def test_data_rows_are_the_csv_modules_rows(text: str) -> None:
+    """The rows after the header, split without the csv module when the text has no quote,
+    carriage return or NUL, are the csv module's own rows (or None where it refuses the text)."""
+    from acquisition.telemetry.csv_cells import data_rows
+
+    reader = csv.reader(io.StringIO(text))
+    try:
+        next(reader, None)
+        expected: list[list[str]] | None = [row for row in reader if "".join(row).strip()]
+    except csv.Error:
+        expected = None
+    assert data_rows(text) == expected
