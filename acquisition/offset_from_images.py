@@ -554,13 +554,16 @@ def estimate_offset(
 @dataclass(frozen=True, kw_only=True)
 class ReconstructionOptions:
     """How the frames are reconstructed: their size as matched (px, longer side), SIFT features
-    per frame, neighbours in capture order and in space each frame is matched with, and the file
-    COLMAP's own log goes to (None: discarded)."""
+    per frame, neighbours in capture order and in space each frame is matched with (every pair up
+    to ``exhaustive_max_frames`` frames: neighbours in space are found at the offset otherwise
+    used, and when it is far off, the lines are left unconnected), and the file COLMAP's own log
+    goes to (None: discarded)."""
 
     max_image_size_px: int = 640
     max_features: int = 2000
     time_neighbours: int = 3
     space_neighbours: int = 6
+    exhaustive_max_frames: int = 60
     log_path: Path | None = None
 
 
@@ -636,7 +639,10 @@ def reconstruct_paths(
                     max_image_size_px=options.max_image_size_px,
                     max_features=options.max_features,
                 )
-                colmap.match_pairs_file(database, pairs_file)
+                if len(names) <= options.exhaustive_max_frames:
+                    colmap.match_exhaustive(database)
+                else:
+                    colmap.match_pairs_file(database, pairs_file)
                 reconstructions = colmap.incremental_mapping(
                     database, image_dir, work / "sparse", min_model_size=MIN_MODEL_FRAMES
                 )

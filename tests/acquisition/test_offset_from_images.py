@@ -124,12 +124,13 @@ def test_closed_form_misfit_is_the_fitted_similarity_residual(seed: int, n: int,
     processing.similarity (an independent implementation: SVD of the weighted cross-covariance)."""
     rng = np.random.default_rng(seed)
     centres = rng.normal(scale=50.0, size=(n, 3))
+    mirror = np.diag([1.0, 1.0, -1.0])  # the third target set is a mirror image: no rotation fits it
     targets = np.stack(
         [
-            float(10 ** rng.uniform(-1, 1)) * centres @ _rotation(rng).T
+            float(10 ** rng.uniform(-1, 1)) * centres @ (_rotation(rng) @ (mirror if k == 2 else np.eye(3))).T
             + rng.normal(scale=100.0, size=3)
             + rng.normal(scale=noise + 1e-3, size=(n, 3))
-            for _ in range(3)
+            for k in range(3)
         ]
     )
     closed = aligned_rss(centres, targets)
@@ -248,6 +249,22 @@ def test_a_repeating_pattern_is_ambiguous_and_two_models_settle_it() -> None:
     both = estimate_offset([first, second], track)
     assert both.offset_s is not None and both.sigma_s is not None
     assert abs(both.offset_s - 4.2) <= 4 * both.sigma_s + FINE_STEP_S
+
+
+@settings(max_examples=15, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.floats(-30.0, 30.0))
+def test_frames_pushed_onto_a_standing_vehicle_fit_worst(seed: int, offset: float) -> None:
+    """The log runs ten minutes before take-off with the vehicle standing (GPS jitter of half a
+    metre): an offset that puts every frame there must not fit best (a similarity could shrink
+    the model onto the jitter if the misfit were measured on the track)."""
+    rng = np.random.default_rng(seed)
+    t, xyz, frames = _lawnmower(rng, lines=3, speed=10.0, length=300.0, spacing=60.0, interval=2.0)
+    standing_t = np.arange(-630.0, -30.0, 0.2)
+    standing = xyz[0] + rng.normal(scale=0.5, size=(standing_t.size, 3))
+    track = TrackXYZ(time_s=np.concatenate([standing_t, t]), xyz_m=np.vstack([standing, xyz]))
+    estimate = estimate_offset([_model_of(rng, track, frames, offset, 1.0)], track)
+    assert estimate.best_offset_s is not None
+    assert abs(estimate.best_offset_s - offset) < 2.0, estimate
 
 
 def test_frames_beyond_the_track_leave_nothing_to_search() -> None:
