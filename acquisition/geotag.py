@@ -173,6 +173,13 @@ def geotag_images(
         images_asked=images_asked,
     )
     estimate = None
+    if offset_from_images is not None and not images_asked:
+        why = (
+            "the log has camera events: the offset comes from matching them"
+            if events is not None
+            else "the offset was given"
+        )
+        warnings.append(f"--offset-from-images not used: {why}")
     if images_asked and offset_from_images is not None:
         from .offset_from_images import clock_from_images
 

@@ -11,12 +11,14 @@ cannot give it.
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from numpy.typing import NDArray
+from survey_frames import write_frame
 
 from acquisition.offset_from_images import (
     FINE_STEP_S,
@@ -296,3 +298,32 @@ def test_uncertainty_shrinks_with_noise(lines: int) -> None:
     quiet = estimate_offset([_model_of(np.random.default_rng(1), track, frames, 1.0, 0.3)], track)
     assert noisy.sigma_s is not None and quiet.sigma_s is not None
     assert quiet.sigma_s < noisy.sigma_s
+
+
+def test_a_log_with_camera_events_is_matched_and_the_flag_said_unused(tmp_path: Path) -> None:
+    """With camera events the offset comes from matching them (no reconstruction is run) and the
+    result says that --offset-from-images was not used."""
+    from acquisition.geotag import geotag_images
+    from acquisition.offset_from_images import ReconstructionOptions
+    from acquisition.telemetry.model import CameraEvents, FlightLog, PositionTrack
+
+    start = 1_700_000_000.0
+    capture = start + np.cumsum(np.random.default_rng(5).uniform(1.5, 3.0, size=8))
+    for k, t in enumerate(capture):
+        write_frame(tmp_path / "images" / f"IMG_{k:04d}.JPG", t + 7.0)  # camera 7 s ahead
+    times = np.arange(start - 10, capture[-1] + 10, 0.2)
+    log = FlightLog(
+        path="synthetic",
+        format="csv",
+        events=CameraEvents(time_utc_s=capture, seq=np.arange(8, dtype=np.int64)),
+        positions=PositionTrack(
+            time_utc_s=times, lat_deg=42.0 + 1e-5 * (times - start), lon_deg=np.full(times.size, -93.0)
+        ),
+    )
+    result = geotag_images(
+        tmp_path / "images", log, tmp_path / "out", dry_run=True, offset_from_images=ReconstructionOptions()
+    )
+    assert str(result.offset_source) == "matched"
+    assert result.offset_s == pytest.approx(7.0, abs=0.01)
+    assert result.offset_from_images is None
+    assert any("--offset-from-images not used: the log has camera events" in w for w in result.warnings)
