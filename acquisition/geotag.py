@@ -45,6 +45,7 @@ import logging
 import os
 from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
@@ -77,6 +78,9 @@ from .matching import match_frames_to_events
 from .sync_points import SyncPoint
 from .telemetry.model import CameraEvents, FlightLog
 
+if TYPE_CHECKING:
+    from .offset_from_images import ReconstructionOptions
+
 logger = logging.getLogger(__name__)
 
 F64 = NDArray[np.float64]
@@ -101,6 +105,7 @@ def geotag_images(
     staging: StagedOutputDir | None = None,
     ahead: CardAhead | None = None,
     images: Sequence[Path] | None = None,
+    offset_from_images: ReconstructionOptions | None = None,
 ) -> GeotagResult:
     """Geotag every JPEG under ``image_dir`` (recursively) from ``log``; results in ``out_dir``.
 
@@ -115,6 +120,9 @@ def geotag_images(
     worker copying the frames into it (:mod:`acquisition.card_ahead`); the caller stops the
     worker and removes the folder if this raises. ``images``: the frames, when the caller has
     listed them and checked the options (:func:`acquisition.card.prepare_images`).
+    ``offset_from_images``: without camera events and ``offset_s``, estimate the camera clock
+    offset from the frames' own motion against the track (:mod:`acquisition.offset_from_images`;
+    needs pycolmap, and minutes).
 
     Raises :class:`GeotagError` when the frames and events cannot be reconciled, or when their
     alignment is ambiguous (another camera clock offset fits nearly as well) and neither
@@ -151,9 +159,33 @@ def geotag_images(
             "the capture times have whole seconds only (no SubSecTimeOriginal): matched with a "
             "wider tolerance; frames placed by time can be off by up to half a second of flight"
         )
+    images_asked = offset_from_images is not None and events is None and offset_s is None
     clock = _set_clock(
-        times, timed, sync_capture, events, log, offset_s, options.tolerance_s, whole_seconds, warnings
+        times,
+        timed,
+        sync_capture,
+        events,
+        log,
+        offset_s,
+        options.tolerance_s,
+        whole_seconds,
+        warnings,
+        images_asked=images_asked,
     )
+    estimate = None
+    if offset_from_images is not None and not images_asked:
+        why = (
+            "the log has camera events: the offset comes from matching them"
+            if events is not None
+            else "the offset was given"
+        )
+        warnings.append(f"--offset-from-images not used: {why}")
+    if images_asked and offset_from_images is not None:
+        from .offset_from_images import clock_from_images
+
+        clock, estimate = clock_from_images(
+            clock, Path(image_dir), timed, times, log, offset_from_images, warnings
+        )
     placed, interpolation = place_frames(timed, times, names, clock, events, log, options, warnings)
     ordered = not_placed(frames, timed, names, placed)
     if interpolation is not None and timed and not any(r.placed for r in ordered):
@@ -180,6 +212,8 @@ def geotag_images(
             out_dir=str(out_dir),
             outputs=tuple(outs),
             warnings=tuple(warnings),
+            offset_sigma_s=estimate.sigma_s if estimate is not None and estimate.claimed else None,
+            offset_from_images=None if estimate is None else estimate.as_dict(),
         )
 
     final: list[FrameResult] = ordered
@@ -217,6 +251,8 @@ def _set_clock(
     tolerance_s: float | None,
     whole_seconds: bool,
     warnings: list[str],
+    *,
+    images_asked: bool = False,
 ) -> Clock:
     """Match the frames to the camera events, or (without events) take the offset as given, from
     the sync points, from the frames' own GPS time, or assume 0 and say so."""
@@ -262,7 +298,11 @@ def _set_clock(
     from_gps = offset_from_exif_gps([fr.tags for fr in timed if fr.tags is not None])
     if from_gps is not None:
         return Clock(offset_s=from_gps, source=OffsetSource.EXIF_GPS)
-    if timed and not all(fr.tags is not None and fr.tags.capture_time_zone_known for fr in timed):
+    if (
+        timed
+        and not images_asked  # the images' estimate says what it found instead
+        and not all(fr.tags is not None and fr.tags.capture_time_zone_known for fr in timed)
+    ):
         warnings.append(
             "no camera events and no --offset-s: the camera clock is assumed to be "
             "UTC; a wrong clock or time zone places every frame wrongly"

@@ -110,6 +110,9 @@ def offset_cost_warning(offset: float, source: OffsetSource, speeds_m_s: Sequenc
         OffsetSource.GIVEN: "given (--offset-s)",
         OffsetSource.EXIF_GPS: "from the frames' own GPS time stamps",
         OffsetSource.SYNC: "from the sync points",
+        OffsetSource.IMAGES: (
+            "estimated from the frames' own motion against the track (its uncertainty is in the report)"
+        ),
         OffsetSource.ASSUMED_ZERO: "ASSUMED to be 0 s (no camera events, no --offset-s, no sync point)",
     }.get(source, str(source))
     return (

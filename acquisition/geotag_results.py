@@ -55,6 +55,7 @@ class OffsetSource(StrEnum):
     EXIF_GPS = "exif_gps"  # frames' own GPS time stamps versus capture time
     SYNC = "sync"  # from the crew's sync points (a frame's known time or position)
     ASSUMED_ZERO = "assumed_zero"
+    IMAGES = "images"  # from the frames' own motion against the track (acquisition.offset_from_images)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -162,7 +163,9 @@ class GeotagResult:
 
     ``unmatched_events``: (index, seq) of camera events no frame was found for (dropped frames).
     ``untagged``: frames nothing was written for, with the reason. ``offset_s``: camera clock
-    minus UTC; ``drift_ppm``: its rate of change.
+    minus UTC; ``drift_ppm``: its rate of change. ``offset_sigma_s``: the offset's one-sigma
+    uncertainty when it was estimated with one (from the images); ``offset_from_images``: what the
+    images said (:meth:`acquisition.offset_from_images.OffsetEstimate.as_dict`), when asked.
     """
 
     frames: tuple[FrameResult, ...]
@@ -177,6 +180,8 @@ class GeotagResult:
     out_dir: str
     outputs: tuple[str, ...] = ()
     warnings: tuple[str, ...] = field(default=())
+    offset_sigma_s: float | None = None
+    offset_from_images: dict[str, Any] | None = None
 
     @property
     def extra_frames(self) -> tuple[str, ...]:
@@ -212,6 +217,8 @@ class GeotagResult:
                 "unmatched_events": [{"index": i, "seq": s} for i, s in self.unmatched_events],
                 "offset_s": self.offset_s,
                 "offset_source": str(self.offset_source),
+                "offset_sigma_s": self.offset_sigma_s,
+                "offset_from_images": self.offset_from_images,
                 "drift_ppm": self.drift_ppm,
                 "residual_mad_s": self.residual_mad_s,
                 "tolerance_s": self.tolerance_s,

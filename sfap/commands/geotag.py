@@ -24,6 +24,7 @@ from ..common import FINITE_FLOAT, echo_table, json_option, overwrite_option, pr
 
 if TYPE_CHECKING:
     from acquisition.geotag_results import GeotagResult
+    from acquisition.offset_from_images import ReconstructionOptions
 
 
 #: The largest camera clock offset taken: about 50 years (a clock never set reads 2000-01-01).
@@ -155,6 +156,14 @@ def _card_ahead(
     "the offset; refused when the flight passes there more than once. Repeatable.",
 )
 @click.option(
+    "--offset-from-images",
+    is_flag=True,
+    help="Without camera events in the log: estimate the camera clock offset from the frames' own "
+    "motion against the track (a quick reconstruction of the frames with pycolmap, minutes for "
+    "hundreds of frames), with its uncertainty, or say that the frames do not pin it down (straight "
+    "lines flown one way do not; lines in opposite directions and turns do).",
+)
+@click.option(
     "--tolerance-s",
     type=float,
     default=None,
@@ -202,6 +211,7 @@ def command(
     offset_s: float | None,
     sync_times: tuple[SyncPoint, ...],
     sync_positions: tuple[SyncPoint, ...],
+    offset_from_images: bool,
     tolerance_s: float | None,
     max_gap_s: float,
     camera_mount: str,
@@ -226,7 +236,8 @@ def command(
     of a card, regular lines), nothing is written and the competing offsets are listed:
     confirm one with --offset-s, or give a sync point. Without camera events in the log,
     frames are placed by capture time and the cost of a wrong offset (ground speed times
-    the error) is stated.
+    the error) is stated; --offset-from-images estimates the offset from the frames' own
+    motion against the track, with its uncertainty, or says why the frames cannot.
 
     Exit codes: 0 every frame tagged; 1 frames left untagged (listed), or the operation
     failed (an ambiguous alignment, frames that cannot be reconciled with the log); 2 bad
@@ -241,6 +252,18 @@ def command(
     sync = sync_times + sync_positions
     if sync and offset_s is not None:
         raise click.UsageError("give either --offset-s or sync points (--sync, --sync-position), not both")
+    if offset_from_images and offset_s is not None:
+        raise click.UsageError(
+            "give either --offset-s (the offset known) or --offset-from-images (estimate it), not both"
+        )
+    if offset_from_images:
+        import importlib.util
+
+        if importlib.util.find_spec("pycolmap") is None:
+            raise click.UsageError(
+                "--offset-from-images needs pycolmap: install it (pip install 'sfap[colmap]') or give "
+                "--offset-s / --sync instead"
+            )
 
     with warnings_once("acquisition") as handled:  # each warning printed once
         # Everything that can be checked without the log, before reading it (a log can take a while).
@@ -287,6 +310,7 @@ def command(
                     staging=staging,
                     ahead=ahead,
                     images=paths,
+                    offset_from_images=_reconstruction_options() if offset_from_images else None,
                 )
 
         if as_json:
@@ -297,6 +321,12 @@ def command(
             _present(result)
         handled.update(result.warnings)  # in the JSON, or printed by _present
     return result  # sfap/cli.py: exit 1 when frames were left untagged
+
+
+def _reconstruction_options() -> ReconstructionOptions:
+    from acquisition.offset_from_images import ReconstructionOptions
+
+    return ReconstructionOptions()
 
 
 def _present(result: GeotagResult) -> None:
@@ -313,7 +343,9 @@ def _present(result: GeotagResult) -> None:
         ),
         (
             "camera clock offset",
-            f"{result.offset_s:+.3f} s ({result.offset_source}), drift {result.drift_ppm:.1f} ppm",
+            f"{result.offset_s:+.3f} s"
+            + (f" +/- {result.offset_sigma_s:.3f} s" if result.offset_sigma_s is not None else "")
+            + f" ({result.offset_source}), drift {result.drift_ppm:.1f} ppm",
         ),
     ]
     if result.residual_mad_s is not None:
