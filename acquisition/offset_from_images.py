@@ -606,7 +606,6 @@ def reconstruct_paths(
     order only)."""
     from processing.handoff import colmap_adapter as colmap
     from processing.handoff.errors import HandoffError
-    from processing.pixel_colmap import _stderr_to
 
     by_size: dict[tuple[int, int], list[str]] = {}
     for name, size in zip(names, sizes_px, strict=True):
@@ -630,7 +629,7 @@ def reconstruct_paths(
         pairs_file = work / "pairs.txt"
         pairs_file.write_text("".join(f"{names[i]} {names[j]}\n" for i, j in pairs), encoding="utf-8")
         try:
-            with _stderr_to(log_path):
+            with colmap.stderr_to(log_path):
                 colmap.write_database(database, image_dir, cameras, list(by_size.values()), [])
                 colmap.extract_features(
                     database,

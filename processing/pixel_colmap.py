@@ -10,12 +10,9 @@ of the terminal; the quick reconstruction runs the hand-off's mapper
 
 from __future__ import annotations
 
-import contextlib
 import logging
-import os
-import sys
 import tempfile
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -55,24 +52,6 @@ class MatchRun:
     models: tuple[frozenset[str], ...] | None = None
 
 
-@contextlib.contextmanager
-def _stderr_to(log_path: Path | None) -> Iterator[None]:
-    """Send file descriptor 2 (where glog writes) to ``log_path`` (appended) for the block."""
-    if log_path is None:
-        yield
-        return
-    sys.stderr.flush()
-    saved = os.dup(2)
-    with open(log_path, "ab") as target:
-        os.dup2(target.fileno(), 2)
-        try:
-            yield
-        finally:
-            sys.stderr.flush()
-            os.dup2(saved, 2)
-            os.close(saved)
-
-
 def match_pairs(
     image_dir: Path,
     names: Sequence[str],
@@ -96,7 +75,9 @@ def match_pairs(
     COLMAP fails on the images."""
     import pycolmap
 
-    with tempfile.TemporaryDirectory(prefix="sfap-match-") as tmp, _stderr_to(log_path):
+    from .handoff import colmap_adapter as colmap
+
+    with tempfile.TemporaryDirectory(prefix="sfap-match-") as tmp, colmap.stderr_to(log_path):
         database = Path(tmp) / "match.db"
         pairs_file = Path(tmp) / "pairs.txt"
         pairs_file.write_text("".join(f"{a} {b}\n" for a, b in pairs), encoding="utf-8")

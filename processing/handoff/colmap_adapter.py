@@ -9,9 +9,11 @@ importer also writes WGS84 priors from the EXIF; those are replaced by ours.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
-from collections.abc import Sequence
+import sys
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -24,6 +26,24 @@ from .errors import HandoffError
 log = logging.getLogger(__name__)
 
 F64 = NDArray[np.float64]
+
+
+@contextlib.contextmanager
+def stderr_to(log_path: Path | None) -> Iterator[None]:
+    """Send file descriptor 2 (where COLMAP's glog writes) to ``log_path`` (appended) for the block."""
+    if log_path is None:
+        yield
+        return
+    sys.stderr.flush()
+    saved = os.dup(2)
+    with open(log_path, "ab") as target:
+        os.dup2(target.fileno(), 2)
+        try:
+            yield
+        finally:
+            sys.stderr.flush()
+            os.dup2(saved, 2)
+            os.close(saved)
 
 
 def _threads() -> int:
