@@ -484,40 +484,6 @@ def budget_pairs(
     return np.array(list(chosen), dtype=np.int64).reshape(-1, 2)
 
 
-def scale_words(figures: PixelFigures, *, camera_rough: bool, heights_drift: bool) -> str | None:
-    """What to say when the measured image scale and the tagged one disagree by more than
-    :data:`SCALE_AGREEMENT_RATIO`: which of the camera or the heights is off, and by how much
-    (the pixels cannot tell which of the two when neither is known to be suspect)."""
-    ratio = figures.scale_ratio
-    gsd = figures.measured_gsd_cm
-    if ratio is None or gsd is None or abs(ratio - 1.0) <= SCALE_AGREEMENT_RATIO:
-        return None
-    tagged = figures.tagged_gsd_cm
-    assert tagged is not None
-    head = (
-        f"the image scale measured from the pixels (GPS baseline over the image shift of "
-        f"{gsd.count} pairs along the lines) is {gsd.median:.2f} cm per pixel against the "
-        f"{tagged:.2f} cm the tags give ({100 * (ratio - 1):+.0f} %)"
-    )
-    focal_if_heights_right = figures.focal_px / ratio
-    height = figures.measured_height_m
-    if camera_rough and not heights_drift:
-        return (
-            f"{head}: the camera's focal length is unknown, measured {focal_if_heights_right:.0f} px "
-            f"(the camera assumed has {figures.focal_px:.0f} px); give the camera (--camera) and check again"
-        )
-    if heights_drift and not camera_rough:
-        return (
-            f"{head}: the altitudes drift, so the heights above ground are taken from the image scale: "
-            f"median {height:.1f} m"
-        )
-    return (
-        f"{head}: either the heights above ground are off (then they are about {height:.1f} m) or the "
-        f"camera's focal length is (then it is about {focal_if_heights_right:.0f} px, not "
-        f"{figures.focal_px:.0f} px); give the camera (--camera) or the ground (--ground-elevation-m)"
-    )
-
-
 def describe(figures: PixelFigures) -> list[tuple[str, str]]:
     """Rows of the key figures: measured beside tagged."""
     rows: list[tuple[str, str]] = []
@@ -593,5 +559,4 @@ __all__ = [
     "mapped_overlap_pct",
     "measure_pixels",
     "neighbour_pairs",
-    "scale_words",
 ]

@@ -209,46 +209,6 @@ def test_colmap_measures_the_overlap_and_shift_of_frames_cut_from_one_texture(tm
     assert log.stat().st_size > 0
 
 
-def _figures(measured_gsd_cm: float, tagged_gsd_cm: float, focal_px: float) -> object:
-    from processing.pixel_match import PixelFigures
-
-    n = 5
-    return PixelFigures(
-        pair_index=np.column_stack([np.arange(n - 1), np.arange(1, n)]).astype(np.int64),
-        pair_along=np.ones(n - 1, dtype=bool),
-        inliers=np.full(n - 1, 500, dtype=np.int64),
-        matched=np.ones(n - 1, dtype=bool),
-        overlap_pct=np.full(n - 1, 60.0),
-        shift_px=np.full(n - 1, 400.0),
-        gsd_cm=np.full(n - 1, measured_gsd_cm),
-        component=np.zeros(n, dtype=np.int64),
-        frame_count=n,
-        match_size_px=640,
-        seconds=1.0,
-        tagged_gsd_cm=tagged_gsd_cm,
-        focal_px=focal_px,
-        keypoints_median=2000.0,
-    )
-
-
-def test_a_rough_camera_the_pixels_contradict_is_called_unknown_with_the_measured_focal_length() -> None:
-    """A zoom camera known from its 35 mm equivalent: 6,381 px assumed, the tags' GSD 1.10 cm, the
-    pixels 2.41 cm. With the heights right the focal length is 6381 x 1.10 / 2.41 = 2912 px."""
-    from processing.pixel_match import scale_words
-
-    figures = _figures(2.41, 1.10, 6381.0)
-    said = scale_words(figures, camera_rough=True, heights_drift=False)  # type: ignore[arg-type]
-    assert said is not None
-    assert "focal length is unknown, measured 2912 px" in said and "6381 px" in said
-    assert "+119 %" in said  # 2.41 / 1.10 - 1
-    drift = scale_words(figures, camera_rough=False, heights_drift=True)  # type: ignore[arg-type]
-    assert drift is not None and "heights above ground are taken from the image scale" in drift
-    # Height from the measured scale: 2.41 cm x 6381 px = 153.8 m.
-    assert "median 153.8 m" in drift
-    # Within 15 % nothing is said.
-    assert scale_words(_figures(1.20, 1.10, 6381.0), camera_rough=True, heights_drift=False) is None  # type: ignore[arg-type]
-
-
 def test_without_pycolmap_the_check_says_it_judged_on_the_tags(monkeypatch: pytest.MonkeyPatch) -> None:
     """pycolmap is an optional dependency (sfap[colmap]): a check where it is not installed does
     not end in a traceback; it says the frames were not matched and how to install it."""
