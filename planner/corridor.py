@@ -46,9 +46,10 @@ from .coverage import ViewShares, boundary_points, grid_points, view_counts
 from .errors import AreaError, SpecError
 from .footprint import near_far_gsd_cm
 from .geo import LocalFrame
+from .kinds import PassKind
 from .lines import Segment, layout_pass
 from .mission_builder import BuiltMission, PassPlan
-from .plan import FlightPass, PassKind, SurveyPlan
+from .plan import FlightPass, SurveyPlan
 from .spec import MissionSpec, TriggerMode
 
 log = logging.getLogger(__name__)

@@ -3,8 +3,9 @@ lines, mission items, flights, hours and the planner's memory. It takes the area
 each pass and its size, the frame's ground rectangle and the overlaps (Eq. 3-5): no line, station
 or footprint is made, so it takes well under a second for any area.
 
-A plan whose estimate exceeds :data:`MAX_PHOTOS` is refused at once with the estimate and the fix
-(split the area, a coarser GSD, or a higher limit: ``sfap plan --max-photos``).
+A plan whose estimate exceeds :data:`planner.limits.MAX_PHOTOS` is refused at once with the
+estimate and the fix (split the area, a coarser GSD, or a higher limit: ``sfap plan
+--max-photos``).
 """
 
 from __future__ import annotations
@@ -21,10 +22,6 @@ from .fixed_wing import fixed_wing_for
 from .lines import END_STATIONS
 from .spec import MissionSpec, TriggerMode
 
-#: The most photos a plan is made for unless asked for more (sfap plan --max-photos): about
-#: 570 MB of memory and 15-90 s of planning, quiet machine to loaded (BENCHMARKS.md, "The
-#: planner's size"); the 1,000 km2 block at 2.4 cm (about 957,000 photos) is refused.
-MAX_PHOTOS = 500_000
 #: Peak memory of `sfap plan` per photo and whatever the size, bytes, from whole processes
 #: (25 km2: 23,856 photos, 136 MB; 100 km2: 95,625 photos, 200 MB; 1,000 km2: 956,390 photos,
 #: 1,311 MB with its footprints.gpkg; BENCHMARKS.md): the largest case's slope, an upper bound.
@@ -33,8 +30,6 @@ BASE_BYTES = 115_000_000
 #: Mission items per armed run of a line: camera on + trigger, camera off + trigger (and per line
 #: its entry and exit).
 ITEMS_PER_RUN = 4
-#: A plan estimated above this many photos takes more than a few seconds: the command says so.
-ANNOUNCE_PHOTOS = 20_000
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -10,8 +10,8 @@ from pathlib import Path
 from typing import Any
 from xml.sax.saxutils import escape
 
-from .estimate import MAX_PHOTOS
 from .gcp_layout import GcpLayout, GcpOptions, plan_gcps
+from .limits import MAX_PHOTOS
 from .outputs import atomic_write_bytes, atomic_write_text, staged_output_dir
 from .plan import SurveyPlan
 

@@ -8,12 +8,17 @@ from __future__ import annotations
 import itertools
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
-from .plan import FlightPass, PassKind, SurveyPlan
+from .kinds import PassKind
 from .stats import median
+
+if TYPE_CHECKING:  # not imported: map.png's helper process reads a MapPlan without the planner
+    from .mapview import MapPass, MapPlan
+    from .plan import FlightPass, SurveyPlan
 
 #: Stations drawn as dots at most (every k-th beyond).
 DEFAULT_MAX_STATIONS = 10_000
@@ -60,7 +65,7 @@ def thin(n: int, max_count: int) -> tuple[NDArray[np.int64], int]:
     return np.arange(0, n, step, dtype=np.int64), step
 
 
-def pass_line_count(flight_pass: FlightPass, tolerance_m: float = 0.01) -> int:
+def pass_line_count(flight_pass: FlightPass | MapPass, tolerance_m: float = 0.01) -> int:
     """How many lines (rows) a pass flies: its camera-on segments grouped by their offset across
     the pass direction (a line that crosses a hole or a concave bay is flown as two or more
     segments of one row). The map's header and legend both count with this."""
@@ -137,7 +142,7 @@ class MapFrame:
         return self.map_w_in * 72.0 / (self.limits[1] - self.limits[0])
 
 
-def map_frame(plan: SurveyPlan) -> MapFrame:
+def map_frame(plan: SurveyPlan | MapPlan) -> MapFrame:
     """The extent of everything drawn (area, exclusions, path, footprints, home), padded, and a
     page shaped like it (within limits): margins for the title lines, the axis labels and
     caption, and the legend on the right."""
@@ -242,11 +247,11 @@ class PassStyle:
     pass_indices: tuple[int, ...]
 
 
-def pass_styles(plan: SurveyPlan) -> list[PassStyle]:
+def pass_styles(plan: SurveyPlan | MapPlan) -> list[PassStyle]:
     """One style per kind of pass, height and look direction, in the order the passes come:
     nadir passes at different heights (a multi-scale block) and oblique passes looking different
     ways are told apart by colour; one height and one look per kind keep the kind's colour."""
-    groups: dict[tuple[PassKind, float, float | None], list[FlightPass]] = {}
+    groups: dict[tuple[PassKind, float, float | None], list[FlightPass | MapPass]] = {}
     for p in plan.passes:
         if p.lines:
             look = None if p.look_heading_deg is None else round(p.look_heading_deg % 360.0, 1)
@@ -291,7 +296,7 @@ class Simplification:
     notes: tuple[str, ...]
 
 
-def simplification(plan: SurveyPlan, frame: MapFrame, footprint_step: int = 1) -> Simplification:
+def simplification(plan: SurveyPlan | MapPlan, frame: MapFrame, footprint_step: int = 1) -> Simplification:
     """Footprints are drawn when there are at most MAX_VISIBLE_FOOTPRINTS and those drawn (every
     ``footprint_step``-th) are visibly apart along the lines; stations when consecutive ones are
     (every one: thinning would hide the crowding) and there are at most MAX_STATIONS_PER_IN2 per

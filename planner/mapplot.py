@@ -16,7 +16,6 @@ no global state is touched and threads can render side by side.
 
 from __future__ import annotations
 
-import io
 import logging
 import math
 import os
@@ -29,6 +28,7 @@ from numpy.typing import NDArray
 from shapely.geometry import MultiPolygon, Polygon
 
 from .errors import InputError
+from .kinds import PassKind
 from .maplayout import (
     AREA_EDGE,
     AREA_FACE,
@@ -44,8 +44,7 @@ from .maplayout import (
     shown_text,
     thin,
 )
-from .outputs import atomic_write_bytes
-from .plan import PassKind, SurveyPlan
+from .plan import SurveyPlan
 from .stats import median
 
 if TYPE_CHECKING:  # matplotlib is imported when a map is drawn (about 0.2 s), not with the module
@@ -360,25 +359,14 @@ def map_png_bytes(
     sorties: Sequence[SurveyPlan] = (),
 ) -> bytes:
     """The map of ``plan`` as PNG bytes (see :func:`render_map_png`)."""
-    from PIL import Image
-
-    from .maprender import draw_map
-
-    if max_footprints < 0 or max_stations < 0:
-        raise InputError(
-            f"max_footprints = {max_footprints}, max_stations = {max_stations}: both must be 0 or more"
-        )
     # Drawn with Pillow (planner/maprender.py): matplotlib's import alone costs more than a
     # small plan's planning and every other output together.
-    rgb = draw_map(plan, max_footprints=max_footprints, max_stations=max_stations, dpi=dpi, sorties=sorties)
-    # A map is a few flat colours and their anti-aliased edges: a 256-colour palette keeps
-    # them (no dithering) and encodes 3-4x faster and 4x smaller than 24-bit colour. zlib's
-    # fastest level: the same pixels as its default (6) in half the time or less (10-20 ms of a
-    # small plan's critical path), in a file about 1.5x larger (170 KB for the gully's map).
-    image = rgb.quantize(colors=256, method=Image.Quantize.FASTOCTREE, dither=Image.Dither.NONE)
-    buffer = io.BytesIO()
-    image.save(buffer, format="PNG", compress_level=1)
-    return buffer.getvalue()
+    from .maprender import png_bytes
+    from .mapview import map_view
+
+    return png_bytes(
+        map_view(plan, sorties), max_footprints=max_footprints, max_stations=max_stations, dpi=dpi
+    )
 
 
 def render_map_png(
@@ -397,9 +385,9 @@ def render_map_png(
     per inch of the PNG (the figure is about 12 inches wide). ``sorties``: the plan's sorties (their
     own plans, numbered from 1), drawn as outlines with their numbers.
     """
-    data = map_png_bytes(
-        plan, max_footprints=max_footprints, max_stations=max_stations, dpi=dpi, sorties=sorties
+    from .maprender import write_png
+    from .mapview import map_view
+
+    return write_png(
+        map_view(plan, sorties), path, max_footprints=max_footprints, max_stations=max_stations, dpi=dpi
     )
-    written = atomic_write_bytes(path, data)
-    log.debug("wrote map: %s (%d bytes)", written, len(data))
-    return written

@@ -32,10 +32,11 @@ from .fixed_wing import FixedWing, loop_turn
 from .flight_path import CameraPose, FlightPath, PathPoint, PathRun, Role
 from .footprint import footprint_corners
 from .geo import LocalFrame
+from .kinds import PassKind
 from .lines import Segment
 from .mission import HomePosition, Mission, VehicleType
 from .mission_items import MissionEmitter, wrap180
-from .plan import FlightLine, PassKind, Stations
+from .plan import FlightLine, Stations
 from .route import Router, boustrophedon, nearest_start, polyline_length_m
 from .spec import MissionSpec, TriggerMode
 

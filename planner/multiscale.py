@@ -17,7 +17,8 @@ from __future__ import annotations
 from typing import Any
 
 from .errors import SpecError
-from .plan import PassKind, SurveyPlan
+from .kinds import PassKind
+from .plan import SurveyPlan
 from .spec import MissionSpec
 
 

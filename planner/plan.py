@@ -9,7 +9,6 @@ are filled in once, at the end of planning, so writers never transform coordinat
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from enum import StrEnum
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -18,18 +17,13 @@ from shapely.geometry import MultiPolygon, Polygon
 
 from .camera import Camera, Orientation
 from .geo import LocalFrame
+from .kinds import PassKind
 from .mission import HomePosition, Mission
 
 if TYPE_CHECKING:
     from .mission_builder import PassPlan
     from .spec import MissionSpec
     from .terrain import Dem
-
-
-class PassKind(StrEnum):
-    NADIR = "nadir"
-    CROSSHATCH = "crosshatch"
-    OBLIQUE = "oblique"
 
 
 @dataclass(frozen=True, kw_only=True)

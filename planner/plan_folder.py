@@ -36,9 +36,10 @@ from shapely.geometry import MultiPolygon, Polygon, shape
 from .aside import Helper, start_aside
 from .camera import Orientation
 from .errors import PlanFolderError
+from .kinds import PassKind
 from .mission import HomePosition
 from .outputs import atomic_write_text, staged_output_dir
-from .plan import FlightPass, PassKind, Summary, SurveyPlan
+from .plan import FlightPass, Summary, SurveyPlan
 from .terrain_follow import TerrainSummary
 
 log = logging.getLogger(__name__)
@@ -239,20 +240,6 @@ def output_files(plan: SurveyPlan) -> tuple[str, ...]:
     return names if dem is None else (*names, dem)
 
 
-def _write_map(plan: SurveyPlan, path: Path) -> None:
-    from .mapplot import render_map_png  # Pillow with it: imported where the map is drawn
-
-    render_map_png(plan, path)
-
-
-def prepare_map() -> None:
-    """What drawing map.png needs, loaded before the plan exists (a :class:`planner.aside.Helper`
-    warms up with it while the plan is made)."""
-    from .maprender import prepare
-
-    prepare()
-
-
 def _writers(plan: SurveyPlan) -> dict[str, Callable[[Path], object]]:
     """The writer of each file of :func:`output_files` but map.png, by name."""
     from .formats.geojson import (
@@ -301,16 +288,20 @@ def write_outputs(
     map.png, a third of a small plan's time, is drawn aside (planner.aside: in a child process
     on the other core, where that is safe) from the moment the staging folder exists, while the
     other files are written here; it is waited for before the folder is moved into place. A
-    ``helper`` (started with :func:`prepare_map` before the plan was made) draws it instead, with
-    Pillow and the fonts already loaded."""
+    ``helper`` (started with planner.maprender.prepare before the plan was made) draws it
+    instead, with Pillow and the fonts already loaded: it is sent the map's view of the plan
+    (planner.mapview), which it reads without importing the planner."""
+    from .mapview import map_view, write_map_png
+
     names = output_files(plan)
     final = Path(out_dir)
     with staged_output_dir(final, overwrite=overwrite) as staging:
         map_path, what = staging / "map.png", str(final / "map.png")
+        view = map_view(plan)
         if helper is not None:
-            map_png = helper.submit(_write_map, plan, map_path, what=what)
+            map_png = helper.submit(write_map_png, view, map_path, what=what)
         else:
-            map_png = start_aside(lambda: _write_map(plan, map_path), what)
+            map_png = start_aside(lambda: write_map_png(view, map_path), what)
         try:
             writers = _writers(plan)
             for name in names:

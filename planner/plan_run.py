@@ -12,7 +12,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from .errors import InputError
-from .estimate import MAX_PHOTOS, PlanEstimate
+from .estimate import PlanEstimate
+from .limits import MAX_PHOTOS
 from .plan import SurveyPlan
 from .spec import MissionSpec
 
@@ -48,7 +49,7 @@ class PlanRun:
     ) -> list[Path]:
         """Every file of the plan (and of each sortie, in sortie-NN/) into ``out_dir``, all or
         nothing; ``progress(1)`` after each file. ``helper``: a :class:`planner.aside.Helper`
-        warmed with :func:`planner.plan_folder.prepare_map`, to draw map.png (a plan without
+        warmed with :func:`planner.maprender.prepare`, to draw map.png (a plan without
         sorties)."""
         if self.sorties:
             from .sorties import write_with_sorties

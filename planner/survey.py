@@ -40,12 +40,14 @@ from . import trigger as trig
 from .area import load_polygons
 from .coverage import ViewShares, view_shares
 from .errors import SpecError
-from .estimate import MAX_PHOTOS, PassGeometry, PlanEstimate, estimate, too_large
+from .estimate import PassGeometry, PlanEstimate, estimate, too_large
 from .footprint import near_far_gsd_cm, tilted_gsd_cm
+from .kinds import PassKind
+from .limits import MAX_PHOTOS
 from .lines import layout_pass
 from .mission import VehicleType
 from .mission_builder import BuiltMission, PassPlan
-from .plan import FlightPass, PassKind, PlanLayout, SurveyPlan
+from .plan import FlightPass, PlanLayout, SurveyPlan
 from .spec import MissionSpec, TriggerMode
 
 log = logging.getLogger(__name__)

@@ -31,9 +31,10 @@ from .coverage import ViewShares
 from .errors import AreaError, PlanningError, SpecError
 from .fixed_wing import fixed_wing_for
 from .geo import LocalFrame, geodesic_area_m2, geodesic_distance_m
+from .kinds import PassKind
 from .mission import HomePosition
 from .mission_builder import BuiltMission, PassPlan, build_mission
-from .plan import FlightPass, PassKind, PlanLayout, SurveyPlan
+from .plan import FlightPass, PlanLayout, SurveyPlan
 from .spec import MissionSpec, TriggerMode
 from .terrain import Dem
 from .terrain_follow import CastOverlap, TerrainSummary, apply_terrain

@@ -37,9 +37,10 @@ from shapely.geometry import MultiPolygon, Polygon
 from shapely.geometry.polygon import orient
 
 from ..errors import InputError
+from ..kinds import PassKind
 from ..mission import MavCmd, MavFrame
 from ..outputs import atomic_write_bytes
-from ..plan import PassKind, SurveyPlan
+from ..plan import SurveyPlan
 from ..stats import median
 
 log = logging.getLogger(__name__)

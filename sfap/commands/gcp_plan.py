@@ -6,9 +6,9 @@ from pathlib import Path
 
 import click
 
-from planner.estimate import MAX_PHOTOS
 from planner.gcp_layout import GcpOptions
 from planner.gcp_outputs import plan_gcp_folder
+from planner.limits import MAX_PHOTOS
 
 from ..common import FINITE_FLOAT, dumps_json, echo_table, json_option, overwrite_option
 

@@ -4,15 +4,18 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 
 from planner.aside import Helper
-from planner.estimate import ANNOUNCE_PHOTOS, MAX_PHOTOS, PlanEstimate
-from planner.plan_folder import prepare_map
-from planner.plan_run import PlanRun, plan_spec
+from planner.limits import ANNOUNCE_PHOTOS, MAX_PHOTOS
 
 from ..common import dumps_json, echo_table, json_option, overwrite_option, progress, warnings_once
+
+if TYPE_CHECKING:  # the planner is imported once map.png's helper is started (command)
+    from planner.estimate import PlanEstimate
+    from planner.plan_run import PlanRun
 
 _ROWS = (
     ("area", "area_m2", "{:,.0f} m2"),
@@ -120,9 +123,14 @@ def command(
             if loud:
                 click.echo(f"  {time.monotonic() - started:6.1f} s  {what}", err=True)
 
-        # map.png's helper process gets Pillow and the fonts ready on the other core while the
-        # plan is made, then draws the map while the other files are written (planner.aside).
-        with Helper(warm=prepare_map) as helper:
+        # map.png's helper process, forked before the planner is imported (a small process forks
+        # in a fraction of a millisecond, and shares no page it would then have to copy),
+        # imports the drawing and gets Pillow and the fonts ready on the other core while this
+        # one imports the planner and plans; then it draws the map (sent as its view of the
+        # plan, planner.mapview) while this one writes the other files (planner.aside).
+        with Helper(warm=_prepare_map) as helper:
+            from planner.plan_run import plan_spec
+
             run = plan_spec(
                 spec_file, resume_from=resume_from, resume_record=resume_record, max_photos=max_photos,
                 announce=announce, stage=stage,
@@ -131,6 +139,14 @@ def command(
                 run.write(out_dir, overwrite=overwrite, progress=advance, helper=helper)
         _present(run, out_dir, as_json)
         handled.update(run.plan.warnings)  # printed by _present, in the JSON, or left out on purpose
+
+
+def _prepare_map() -> None:
+    """In map.png's helper: import the drawing (numpy, shapely, Pillow; not the planner: the map
+    is sent as a planner.mapview.MapPlan), and load the map's fonts."""
+    from planner.maprender import prepare
+
+    prepare()
 
 
 def _present(run: PlanRun, out_dir: Path, as_json: bool) -> None:

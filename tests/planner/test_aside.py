@@ -192,7 +192,7 @@ def test_sfap_plan_draws_the_map_aside_and_the_same_map(tmp_path: Path) -> None:
         import json, sys
         sys.argv = ["sfap", "-vv", "plan", "missions/bardenas-gully.toml", "-o", {str(out)!r},
                     "--no-progress"]
-        from sfap.entry import main
+        from sfap.cli import main  # the click group: sfap.entry's would end the process at once
         try:
             main()
         except SystemExit as end:

@@ -37,10 +37,11 @@ from planner.formats.geojson import (
 )
 from planner.formats.kml import KML_NS, ordinal, serialise, write_kml
 from planner.geo import LocalFrame, geodesic_distance_m
+from planner.kinds import PassKind
 from planner.maplayout import scale_bar_length_m
 from planner.mapplot import render_map_figure, render_map_png
 from planner.mission import Autopilot, HomePosition, MavCmd, Mission, MissionItem
-from planner.plan import FlightLine, FlightPass, PassKind, Stations, Summary, SurveyPlan
+from planner.plan import FlightLine, FlightPass, Stations, Summary, SurveyPlan
 
 LON0, LAT0 = -1.4963, 42.1790  # Bardenas Reales, Navarra (the textbook's gully region)
 

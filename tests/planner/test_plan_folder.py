@@ -19,7 +19,8 @@ from test_survey import to_lonlat_polygon
 
 from planner.errors import InputError, PlanFolderError
 from planner.formats.geojson import COORD_DECIMALS
-from planner.plan import PassKind, SurveyPlan
+from planner.kinds import PassKind
+from planner.plan import SurveyPlan
 from planner.plan_folder import (
     OUTPUT_FILES,
     PLAN_FILES,

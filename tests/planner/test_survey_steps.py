@@ -15,7 +15,7 @@ from test_survey import to_lonlat_polygon
 
 from planner import survey_steps as steps
 from planner.errors import SpecError
-from planner.plan import PassKind
+from planner.kinds import PassKind
 from planner.spec import MissionSpec, parse_spec
 from planner.survey import plan_polygons
 

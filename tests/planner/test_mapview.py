@@ -1,0 +1,112 @@
+"""planner.mapview: the map's view of a plan, drawn in a process that never imports the planner.
+
+`sfap plan` forks map.png's helper before it imports the planner and sends it the plan's
+:class:`~planner.mapview.MapPlan`: the helper must be able to import the drawing and rebuild the
+view with numpy, shapely and Pillow alone, and draw the map the plan itself gives. Checked in
+fresh processes (``python -c``), whose modules are their own.
+"""
+
+from __future__ import annotations
+
+import json
+import pickle
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[2]
+
+#: What the helper must not import: the planner's own modules, and the libraries only planning needs.
+PLANNING = (
+    "pyproj",
+    "click",
+    "planner.plan",
+    "planner.geo",
+    "planner.survey",
+    "planner.spec",
+    "planner.camera",
+)
+
+
+def _run(script: str) -> dict[str, object]:
+    done = subprocess.run(
+        [sys.executable, "-c", textwrap.dedent(script)], cwd=REPO, capture_output=True, text=True, timeout=120
+    )
+    assert done.returncode == 0, done.stderr
+    result: dict[str, object] = json.loads(done.stdout.strip().splitlines()[-1])
+    return result
+
+
+def test_the_drawing_imports_nothing_of_the_planning() -> None:
+    """The modules map.png's helper imports before the plan exists (sfap/commands/plan.py)."""
+    result = _run(
+        f"""
+        import json, sys
+        from planner.maprender import prepare
+        import planner.mapview
+        prepare()
+        print(json.dumps({{"loaded": [m for m in {PLANNING!r} if m in sys.modules]}}))
+        """
+    )
+    assert result == {"loaded": []}
+
+
+def test_a_view_sent_to_a_fresh_process_draws_the_plans_own_map(tmp_path: Path) -> None:
+    """The gully's view, pickled as the helper receives it, read and drawn in a process without
+    the planner: the same PNG bytes as the map drawn here from the plan itself."""
+    from planner.mapplot import map_png_bytes
+    from planner.mapview import map_view
+    from planner.spec import load_spec
+    from planner.survey import plan_survey
+
+    plan = plan_survey(load_spec(REPO / "missions" / "bardenas-gully.toml"))
+    sent = tmp_path / "view.pickle"
+    sent.write_bytes(pickle.dumps(map_view(plan), protocol=pickle.HIGHEST_PROTOCOL))
+    drawn = tmp_path / "map.png"
+    result = _run(
+        f"""
+        import json, pickle, sys
+        import planner.mapview
+        view = pickle.loads(open({str(sent)!r}, "rb").read())
+        from planner.maprender import write_png
+        write_png(view, {str(drawn)!r})
+        print(json.dumps({{"loaded": [m for m in {PLANNING!r} if m in sys.modules]}}))
+        """
+    )
+    assert result == {"loaded": []}
+    assert drawn.read_bytes() == map_png_bytes(plan)
+
+
+def test_the_view_carries_each_field_the_map_reads_from_the_plan() -> None:
+    """Field by field, by name, against the plan it was taken from (the quarry block: nadir,
+    crosshatch and four obliques looking four ways, so that no two passes are alike): every
+    pass, line and station column, and the texts the matplotlib map writes from the plan."""
+    from dataclasses import fields
+
+    import numpy as np
+
+    from planner.maplayout import caption_text, header_text
+    from planner.mapview import MapLine, MapPass, MapStations, map_view
+    from planner.spec import load_spec
+    from planner.survey import plan_survey
+
+    plan = plan_survey(load_spec(REPO / "missions" / "quarry-block.toml"))
+    view = map_view(plan)
+    assert len({(p.kind, p.look_heading_deg) for p in view.passes}) == len(plan.passes) == 6
+    for seen, planned in zip(view.passes, plan.passes, strict=True):
+        for f in fields(MapPass):
+            if f.name != "lines":
+                assert getattr(seen, f.name) == getattr(planned, f.name), f.name
+        assert len(seen.lines) == len(planned.lines)
+        for line, flown in zip(seen.lines, planned.lines, strict=True):
+            for f in fields(MapLine):
+                assert getattr(line, f.name) == getattr(flown, f.name), f.name
+    for f in fields(MapStations):
+        assert np.array_equal(getattr(view.stations, f.name), getattr(plan.stations, f.name)), f.name
+    assert view.name == plan.name and view.home_xy_m == plan.home_xy_m
+    assert view.area_xy.equals_exact(plan.area_xy, 0.0)
+    assert view.exclusions_xy == plan.exclusions_xy
+    assert np.array_equal(view.path_xy_m, plan.path_xy_m)
+    assert (view.header, view.caption) == (header_text(plan), caption_text(plan))
+    assert view.sorties == ()
