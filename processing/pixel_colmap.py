@@ -72,7 +72,9 @@ def match_pairs(
     matches too (the frames each model registers, largest first); ``priors_m``: each frame's
     position in metres (a local Cartesian frame), given to the mapper as pose priors with standard
     deviations ``prior_sigma_m`` (horizontal, vertical) under a robust loss. ProcessingError when
-    COLMAP fails on the images."""
+    COLMAP fails on the images. Repeatable: the same frames and pairs give the same matches and
+    models, run after run (the verification's RANSAC seeded, the mapper seeded on one thread).
+    ``num_threads``: the extraction's and the matcher's."""
     import pycolmap
 
     from .handoff import colmap_adapter as colmap
@@ -98,11 +100,14 @@ def match_pairs(
             )
             matching = pycolmap.FeatureMatchingOptions()
             matching.num_threads = num_threads
+            verification = pycolmap.TwoViewGeometryOptions()
+            verification.ransac.random_seed = 1  # default: a new seed each run
             if pairs:
                 pycolmap.match_image_pairs(
                     str(database),
                     matching_options=matching,
                     pairing_options=pycolmap.ImportedPairingOptions(match_list_path=str(pairs_file)),
+                    verification_options=verification,
                     device=pycolmap.Device.cpu,
                 )
         except (RuntimeError, ValueError) as error:
@@ -133,7 +138,7 @@ def match_pairs(
                 out.append(PairMatches(a=a, b=b, xy_a=xy_a, xy_b=xy_b))
         models: tuple[frozenset[str], ...] | None = None
         if map_models:
-            models = _map(database, image_dir, Path(tmp) / "sparse", num_threads, use_priors=bool(priors_m))
+            models = _map(database, image_dir, Path(tmp) / "sparse", use_priors=bool(priors_m))
     return MatchRun(
         pairs=tuple(out),
         size_px=size_px,
@@ -163,17 +168,22 @@ def _write_priors(
 
 
 def _map(
-    database: Path, image_dir: Path, output_dir: Path, num_threads: int, *, use_priors: bool
+    database: Path, image_dir: Path, output_dir: Path, *, use_priors: bool
 ) -> tuple[frozenset[str], ...]:
     """COLMAP's incremental mapper on the matches in ``database`` (the hand-off's
     :func:`processing.handoff.colmap_adapter.incremental_mapping`: models of 3 frames or more, the
-    random seed fixed): the frames of each model, largest first."""
+    random seed fixed): the frames of each model, largest first.
+
+    On one thread: the seed fixes the random numbers of the thread that sets it, not those of the
+    mapper's workers, and on two threads the same matches of garfield_rgb gave a largest model of
+    36 %, then 29 % of the frames (with the verification seeded too); on one, 29 % three times.
+    Mapping is a small part of the check's pixel step (seneca_half: 87 s against 84 s, BENCHMARKS.md)."""
     from .handoff.colmap_adapter import incremental_mapping
     from .handoff.errors import HandoffError
 
     try:
         models = incremental_mapping(
-            database, image_dir, output_dir, min_model_size=3, use_priors=use_priors, num_threads=num_threads
+            database, image_dir, output_dir, min_model_size=3, use_priors=use_priors, num_threads=1
         )
     except HandoffError as error:
         raise ProcessingError(f"COLMAP's mapper failed on the matched frames: {error.__cause__}") from error

@@ -400,23 +400,38 @@ def test_a_cell_size_that_makes_too_many_cells_is_bad_input(plans: tuple[Path, P
 SENECA = SHARED_DATA / "seneca_half" / "images"
 
 
-@pytest.mark.slow  # COLMAP's SIFT, matching and mapper on 28 frames of 16 megapixels: 2-4 minutes
+@pytest.mark.slow  # COLMAP's SIFT, matching and mapper on 28 frames of 16 megapixels, twice: 2-5 minutes
 def test_garfield_falls_apart_in_the_pixels_as_in_its_reconstruction(tmp_path: Path) -> None:
     """garfield_rgb: COLMAP registers 13 of its 28 frames in its largest model (exhaustive
     matching at 1000 px). The check's quick reconstruction says the same and fails the block, with
-    COLMAP's log in the report folder, not on the terminal."""
-    out = tmp_path / "r"
-    result = CliRunner().invoke(
-        cli,
-        ["check", str(GARFIELD), "--ground-elevation-m", "258", "--no-progress", "--json", "-o", str(out)],
-    )
-    assert result.exit_code == 1, result.output
-    data = json.loads(result.stdout)
-    quick = data["pixels"]["quick_reconstruction"]
-    assert quick["largest_model_frames_pct"] < 70.0 and len(quick["models"]) >= 2
-    assert any("quick reconstruction" in r for r in data["reasons"])
-    assert (out / "colmap-match.log").stat().st_size > 0
-    assert "incremental_pipeline" not in result.output
+    COLMAP's log in the report folder, not on the terminal. Run again, it gives the same figures:
+    the two-view verification's RANSAC and the mapper are seeded, the mapper on one thread (on
+    two, its largest model held 36 %, 50 %, 54 %, 57 % and 61 % of the frames in five runs)."""
+    runs = []
+    for name in ("r", "again"):
+        out = tmp_path / name
+        result = CliRunner().invoke(
+            cli,
+            [
+                "check",
+                str(GARFIELD),
+                "--ground-elevation-m",
+                "258",
+                "--no-progress",
+                "--json",
+                "-o",
+                str(out),
+            ],
+        )
+        assert result.exit_code == 1, result.output
+        data = json.loads(result.stdout)
+        quick = data["pixels"]["quick_reconstruction"]
+        assert quick["largest_model_frames_pct"] < 70.0 and len(quick["models"]) >= 2
+        assert any("quick reconstruction" in r for r in data["reasons"])
+        assert (out / "colmap-match.log").stat().st_size > 0
+        assert "incremental_pipeline" not in result.output
+        runs.append({k: v for k, v in data["pixels"].items() if not k.startswith("seconds")})
+    assert runs[0] == runs[1]
 
 
 @pytest.mark.slow  # 40 frames through COLMAP: 2-3 minutes
