@@ -15,7 +15,7 @@ def main() -> None:
     if sys.argv[1:] in (["--help"], ["-h"]) and "_SFAP_COMPLETE" not in os.environ:
         from .help_page import help_width, render
 
-        sys.stdout.write(render(os.path.basename(sys.argv[0]), help_width()))
+        sys.stdout.write(render(_program_name(), help_width()))
         sys.stdout.flush()
         return
     from .cli import cli
@@ -25,6 +25,15 @@ def main() -> None:
     except SystemExit as done:
         exit_at_once(done)
         raise
+
+
+def _program_name() -> str:
+    """The name the help page gives the program: as click names it (``python -m sfap`` when run
+    as a module, else the script's file name)."""
+    spec = getattr(sys.modules.get("__main__"), "__spec__", None)
+    if spec is not None and spec.name == "sfap.__main__":
+        return f"{os.path.basename(sys.executable)} -m sfap"
+    return os.path.basename(sys.argv[0])
 
 
 def exit_at_once(done: SystemExit) -> None:

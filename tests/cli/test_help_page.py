@@ -63,3 +63,26 @@ def test_other_arguments_go_to_click() -> None:
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert done.returncode == 0, done.stderr
     assert done.stdout.startswith("sfap, version ")
+
+
+def test_run_as_a_module_the_page_names_the_program_as_click_does() -> None:
+    """`python -m sfap --help` goes through the same entry point (sfap/__main__.py). Click names a
+    program run as a module after the interpreter and the module (click.utils
+    _detect_program_name: `python -m sfap`); the page written without click names it the same,
+    and is click's own page for that name."""
+    env = {**os.environ, "COLUMNS": "80"}
+    fast = subprocess.run(
+        [sys.executable, "-m", "sfap", "--help"], capture_output=True, text=True, env=env, timeout=60
+    )
+    assert fast.returncode == 0, fast.stderr
+    name = f"{os.path.basename(sys.executable)} -m sfap"
+    slow = subprocess.run(
+        [sys.executable, "-c", f"from sfap.cli import cli; cli(prog_name={name!r})", "--help"],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=60,
+    )
+    assert slow.returncode == 0, slow.stderr
+    assert fast.stdout.startswith(f"Usage: {name} [OPTIONS]")
+    assert fast.stdout == slow.stdout
