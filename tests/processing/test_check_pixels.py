@@ -16,6 +16,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 from PIL import Image
 from shared_data import SHARED_DATA
+from textures import blob_texture
 
 from processing.check_pixels import MAX_EXHAUSTIVE_FRAMES, SEQUENTIAL_WINDOW, pairs_without_positions
 from sfap.cli import cli
@@ -36,23 +37,13 @@ def test_pairs_without_positions_are_every_pair_then_a_sliding_window(count: int
         assert (pairs[:, 1] - pairs[:, 0] <= SEQUENTIAL_WINDOW).all()
 
 
-def _texture(width: int, height: int, seed: int) -> np.ndarray:
-    rng = np.random.default_rng(seed)
-    image = np.zeros((height, width))
-    for cell in (4, 9, 23, 61):
-        coarse = rng.normal(size=(height // cell + 2, width // cell + 2))
-        image += np.kron(coarse, np.ones((cell, cell)))[:height, :width]
-    image -= image.min()
-    return (255 * image / image.max()).astype(np.uint8)
-
-
 @pytest.mark.slow  # COLMAP's SIFT, matching and mapper on 10 synthetic frames: 20-60 s
 def test_frames_of_two_unrelated_grounds_without_positions_fail_as_two_parts(tmp_path: Path) -> None:
     """Five frames cut along one texture and five along another (no GPS tags: PIL writes none):
     two parts of 50 % each, under the 70 % one part must hold: FAIL, exit 1, and the report says
     what was not judged."""
     for seed, prefix in ((1, "a"), (2, "b")):
-        texture = _texture(800 + 4 * 200, 600, seed=seed)
+        texture = blob_texture(800 + 4 * 200, 600, seed=seed)
         for k in range(5):
             Image.fromarray(texture[:, 200 * k : 200 * k + 800]).save(
                 tmp_path / f"{prefix}{k}.jpg", quality=95

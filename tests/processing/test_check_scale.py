@@ -17,6 +17,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from PIL import Image
+from textures import blob_texture
 
 from planner.camera import Camera
 from processing.check import run_check
@@ -51,17 +52,6 @@ RIGHT = Camera(
 HEIGHT_M = GSD_CM / 100.0 * 800.0
 
 
-def _texture(width: int, height: int, seed: int) -> np.ndarray:
-    """Blobs at several scales (features SIFT finds at every octave), 8-bit grey."""
-    rng = np.random.default_rng(seed)
-    image = np.zeros((height, width))
-    for cell in (4, 9, 23, 61):
-        coarse = rng.normal(size=(height // cell + 2, width // cell + 2))
-        image += np.kron(coarse, np.ones((cell, cell)))[:height, :width]
-    image -= image.min()
-    return (255 * image / image.max()).astype(np.uint8)
-
-
 @pytest.fixture(scope="module")
 def block(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Frames]:
     """Two lines flown north, image top north: frame k of line j is cut at column j x 400 and
@@ -70,7 +60,7 @@ def block(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Frames]:
     folder = tmp_path_factory.mktemp("synthetic_block")
     tex_h = HEIGHT_PX + STEP_PX * (PER_LINE - 1)
     tex_w = WIDTH_PX + LINE_STEP_PX * (LINES - 1)
-    texture = _texture(tex_w, tex_h, seed=7)
+    texture = blob_texture(tex_w, tex_h, seed=7)
     names, xs, ys, times = [], [], [], []
     for j in range(LINES):
         for k in range(PER_LINE):

@@ -4,24 +4,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
 import pytest
 from PIL import Image
+from textures import blob_texture
 
 pytest.importorskip("pycolmap")
 
 from processing.handoff import colmap_adapter as colmap
-
-
-def _texture(size: int, seed: int) -> np.ndarray:
-    """Blobs of 2-16 px (features at every octave, the finest below the frame's own pixels)."""
-    rng = np.random.default_rng(seed)
-    image = np.zeros((size, size))
-    for cell in (2, 5, 16):
-        coarse = rng.normal(size=(size // cell + 2, size // cell + 2))
-        image += np.kron(coarse, np.ones((cell, cell)))[:size, :size]
-    image -= image.min()
-    return (255 * image / image.max()).astype(np.uint8)
 
 
 def test_sift_on_the_doubled_frame_finds_the_finer_features(tmp_path: Path) -> None:
@@ -32,7 +21,7 @@ def test_sift_on_the_doubled_frame_finds_the_finer_features(tmp_path: Path) -> N
 
     images = tmp_path / "images"
     images.mkdir()
-    Image.fromarray(_texture(400, 1)).save(images / "a.png")
+    Image.fromarray(blob_texture(400, 400, 1, cells=(2, 5, 16))).save(images / "a.png")
     counts = {}
     for octave in (-1, 0):
         db = tmp_path / f"o{octave}.db"

@@ -11,6 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from PIL import Image
+from textures import blob_texture
 
 from processing.pixel_match import (
     affine_fit,
@@ -159,31 +160,19 @@ def test_mapper_pairs_keep_the_neighbours_and_the_budget(
 # --- COLMAP's matcher on a texture cut at known offsets --------------------------------------------
 
 
-def _texture(width: int, height: int, seed: int) -> np.ndarray:
-    """Blobs at several scales (features SIFT finds at every octave), 8-bit grey."""
-    rng = np.random.default_rng(seed)
-    image = np.zeros((height, width))
-    for cell in (4, 9, 23, 61):
-        coarse = rng.normal(size=(height // cell + 2, width // cell + 2))
-        up = np.kron(coarse, np.ones((cell, cell)))[:height, :width]
-        image += up
-    image -= image.min()
-    return (255 * image / image.max()).astype(np.uint8)
-
-
 def test_colmap_measures_the_overlap_and_shift_of_frames_cut_from_one_texture(tmp_path: Path) -> None:
     """Three 800 x 600 frames cut from one texture, each 240 px right of the last (70 % endlap),
     and one cut from another texture: the neighbours match with the shift and overlap of their
     construction, the unrelated frame matches nothing."""
     from processing.pixel_colmap import match_pairs
 
-    texture = _texture(2000, 600, seed=1)
+    texture = blob_texture(2000, 600, seed=1)
     names = []
     for k in range(3):
         name = f"f{k}.jpg"
         Image.fromarray(texture[:, 240 * k : 240 * k + 800]).save(tmp_path / name, quality=95)
         names.append(name)
-    Image.fromarray(_texture(800, 600, seed=2)).save(tmp_path / "other.jpg", quality=95)
+    Image.fromarray(blob_texture(800, 600, seed=2)).save(tmp_path / "other.jpg", quality=95)
     names.append("other.jpg")
     log = tmp_path / "colmap.log"
     run = match_pairs(
