@@ -421,7 +421,8 @@ def estimate_offset(
     usable = [m for m in models if len(m) >= MIN_MODEL_FRAMES]
     frames = sum(len(m) for m in usable)
     base: dict[str, Any] = {"prior_offset_s": prior_offset_s, "frames_used": frames, "models": len(usable)}
-    if not usable:
+
+    def not_compared(reason: str) -> OffsetEstimate:  # no misfit computed at all
         return OffsetEstimate(
             offset_s=None,
             sigma_s=None,
@@ -429,20 +430,18 @@ def estimate_offset(
             rms_m=None,
             rms_at_prior_m=None,
             search_s=None,
-            reason=f"no reconstruction of {MIN_MODEL_FRAMES} frames or more to compare with the track",
+            reason=reason,
             **base,
+        )
+
+    if not usable:
+        return not_compared(
+            f"no reconstruction of {MIN_MODEL_FRAMES} frames or more to compare with the track"
         )
     span = search_range_s(usable, track)
     if span is None:
-        return OffsetEstimate(
-            offset_s=None,
-            sigma_s=None,
-            best_offset_s=None,
-            rms_m=None,
-            rms_at_prior_m=None,
-            search_s=None,
-            reason="the registered frames span longer than the log's track: no offset puts them all on it",
-            **base,
+        return not_compared(
+            "the registered frames span longer than the log's track: no offset puts them all on it"
         )
     low, high = span
     offsets, values, minima = _scan(usable, track, low, high)

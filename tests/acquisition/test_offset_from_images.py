@@ -327,3 +327,29 @@ def test_a_log_with_camera_events_is_matched_and_the_flag_said_unused(tmp_path: 
     assert result.offset_s == pytest.approx(7.0, abs=0.01)
     assert result.offset_from_images is None
     assert any("--offset-from-images not used: the log has camera events" in w for w in result.warnings)
+
+
+def test_nothing_to_compare_is_said_before_any_misfit() -> None:
+    """No model of MIN_MODEL_FRAMES frames, or frames spanning longer than the whole track: no
+    offset is searched, and the reason says which."""
+    from acquisition.offset_from_images import MIN_MODEL_FRAMES
+
+    t = np.arange(0.0, 60.0, 0.2)
+    track = TrackXYZ(time_s=t, xyz_m=np.column_stack([5.0 * t, np.zeros_like(t), np.full_like(t, 80.0)]))
+
+    def model(times: F64) -> ModelPath:
+        return ModelPath(
+            names=tuple(f"f{k}" for k in range(len(times))),
+            capture_s=times,
+            centres=np.column_stack([times, np.zeros_like(times), np.zeros_like(times)]),
+        )
+
+    too_few = estimate_offset([model(np.arange(MIN_MODEL_FRAMES - 1, dtype=float))], track)
+    assert too_few.offset_s is None and too_few.search_s is None
+    assert (
+        too_few.reason == f"no reconstruction of {MIN_MODEL_FRAMES} frames or more to compare with the track"
+    )
+    too_long = estimate_offset([model(np.linspace(0.0, 90.0, MIN_MODEL_FRAMES + 5))], track)  # 90 s > 60 s
+    assert too_long.offset_s is None and too_long.best_offset_s is None and too_long.search_s is None
+    assert too_long.reason is not None and "span longer than the log's track" in too_long.reason
+    assert (too_long.frames_used, too_long.models) == (MIN_MODEL_FRAMES + 5, 1)
