@@ -13,15 +13,25 @@ the child), on a machine with more than one core. Anywhere else the job runs in 
 at once, with the same result. The output is the job's own: the child shares nothing back but
 its error (pickled through a pipe) or its success.
 
-:class:`Helper` is the same child started earlier, before the job exists: it imports and loads
-what the job will need (``warm``: Pillow, its PNG writer and the map's fonts, 25-30 ms of a small
-plan) while this process is still planning, then waits for the job (a function and its arguments,
-pickled through a pipe: a small plan in about a millisecond) and runs it at once.
+:class:`Helper` is a child started earlier, before the job exists: a fresh interpreter (posix_spawn,
+not a fork) that imports and loads what the job will need (``warm``, named: Pillow, its PNG
+writer and the map's fonts, 25-30 ms of a small plan) while this process is still planning, then
+waits for the job (a module-level function and its arguments, pickled through a pipe: a small
+plan in about a millisecond) and runs it at once. Spawned rather than forked for two reasons:
+
+- glibc reads its tunables only when a process starts, and the helper is started asking for
+  transparent huge pages (``glibc.malloc.hugetlb=1``: glibc 2.35 and later advise the kernel to
+  back large allocations with large pages where it allows that on request). The map's
+  supersampled page is 29 MB: in 4 KiB pages, 7,100 page faults, a third of the map's time on a
+  virtual machine; with the advice, about 1,000 (BENCHMARKS.md). Where the kernel or the C
+  library does not take the advice, nothing changes.
+- a spawned child shares no page with this one, and is safe with other threads running.
 """
 
 from __future__ import annotations
 
 import contextlib
+import importlib
 import logging
 import os
 import pickle
@@ -149,35 +159,76 @@ def _report_and_exit(write_fd: int, run: Callable[[], object]) -> NoReturn:
         os._exit(status)
 
 
-class Helper:
-    """A child process forked now that runs ``warm()`` at once, then one job sent later by
-    :meth:`submit`; where a fork is not safe (:func:`can_fork`), nothing is started and the job
-    runs in this process when submitted. :meth:`close` when no job will come (always safe)."""
+#: Asked of glibc in the helper (see the module's text): huge pages for its large allocations.
+HUGE_PAGES_TUNABLE = "glibc.malloc.hugetlb=1"
 
-    def __init__(self, warm: Callable[[], object] | None = None) -> None:
+#: The helper's program: the parent's import path, then serve (the arguments: the job's pipe, the
+#: report's pipe, the warm-up's name, then the path).
+_HELPER_CODE = (
+    "import sys; sys.path[:] = sys.argv[4:]; from planner.aside import _serve_spawned; "
+    "_serve_spawned(int(sys.argv[1]), int(sys.argv[2]), sys.argv[3])"
+)
+
+
+def can_spawn() -> bool:
+    """True when a helper interpreter can be started beside this one and run on its own core:
+    posix_spawn exists, this interpreter's path is known, and more than one core is available."""
+    if not hasattr(os, "posix_spawn") or not sys.executable:
+        return False
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        cores = os.cpu_count() or 1
+    return cores >= 2
+
+
+def helper_environment() -> dict[str, str]:
+    """The helper's environment: this one's, with huge pages asked of glibc (GLIBC_TUNABLES)
+    unless the user's own tunables already say."""
+    env = dict(os.environ)
+    tunables = env.get("GLIBC_TUNABLES", "")
+    if "glibc.malloc.hugetlb=" not in tunables:
+        env["GLIBC_TUNABLES"] = f"{tunables}:{HUGE_PAGES_TUNABLE}" if tunables else HUGE_PAGES_TUNABLE
+    return env
+
+
+class Helper:
+    """A child interpreter started now (:func:`can_spawn`) that runs ``warm`` at once (a function
+    named ``"module:function"``), then one job sent later by :meth:`submit`; where none can be
+    started, nothing is, and the job runs when submitted (:func:`start_aside`). :meth:`close` when
+    no job will come (always safe)."""
+
+    def __init__(self, warm: str | None = None) -> None:
         self.pid: int | None = None
         self._job_fd: int | None = None
         self._report_fd: int | None = None
-        if not can_fork():
+        if not can_spawn():
             return
         _flush_std()
         job_read, job_write = os.pipe()
         report_read, report_write = os.pipe()
-        pid = os.fork()
-        if pid == 0:
+        argv = [sys.executable, "-c", _HELPER_CODE, str(job_read), str(report_write), warm or "", *sys.path]
+        try:
+            os.set_inheritable(job_read, True)  # the child's two ends, and only those
+            os.set_inheritable(report_write, True)
+            pid = os.posix_spawn(sys.executable, argv, helper_environment())
+        except OSError as error:
+            log.debug("no helper process (%s): the job will run when sent", error)
             os.close(job_write)
             os.close(report_read)
-            _report_and_exit(report_write, lambda: _serve(job_read, warm))
-        os.close(job_read)
-        os.close(report_write)
+            return
+        finally:
+            os.close(job_read)
+            os.close(report_write)
         self.pid, self._job_fd, self._report_fd = pid, job_write, report_read
 
     def submit(self, job: Callable[..., object], *args: object, what: str) -> Aside:
-        """``job(*args)`` in the helper (``job`` a module-level function: it is pickled by name;
-        the arguments by value); in this process when no helper runs or the job cannot be
-        pickled. ``what`` names the job in errors. Wait on the :class:`Aside` returned."""
+        """``job(*args)`` in the helper (``job`` a module-level function of an importable module:
+        it is pickled by name; the arguments by value); otherwise, or when no helper runs or the
+        arguments cannot be pickled, by :func:`start_aside`. ``what`` names the job in errors.
+        Wait on the :class:`Aside` returned."""
         data = None
-        if self.pid is not None:
+        if self.pid is not None and _importable(job):
             try:
                 data = pickle.dumps((job, args), protocol=pickle.HIGHEST_PROTOCOL)
             except Exception as error:  # an argument pickle cannot take: run here
@@ -215,11 +266,23 @@ class Helper:
         self.close()
 
 
-def _serve(job_fd: int, warm: Callable[[], object] | None) -> None:
+def _importable(job: Callable[..., object]) -> bool:
+    """True when another interpreter can import ``job`` by its name."""
+    module, name = getattr(job, "__module__", None), getattr(job, "__qualname__", "<")
+    return module not in (None, "__main__") and "<" not in name and "." not in name
+
+
+def _serve_spawned(job_fd: int, report_fd: int, warm: str) -> NoReturn:
+    """The helper interpreter's program (_HELPER_CODE)."""
+    _report_and_exit(report_fd, lambda: _serve(job_fd, warm))
+
+
+def _serve(job_fd: int, warm: str) -> None:
     """The helper's life: warm up, read one job (nothing: leave), run it."""
-    if warm is not None:
+    if warm:
         with contextlib.suppress(Exception):  # only a head start: the job says what fails
-            warm()
+            module, name = warm.split(":")
+            getattr(importlib.import_module(module), name)()
     with os.fdopen(job_fd, "rb") as pipe:
         data = pipe.read()
     if not data:

@@ -3,7 +3,7 @@ and texts (:class:`MapPlan`), taken from a :class:`~planner.plan.SurveyPlan` by 
 
 A MapPlan is rebuilt in another process with numpy and shapely alone. ``sfap plan`` draws map.png
 in a helper process (planner.aside) that imports only those, Pillow and the drawing
-(planner.maprender): forked before the planner is imported, it is ready long before the plan
+(planner.maprender): started before the planner is imported, it is ready long before the plan
 is, instead of importing the whole planner (pyproj, every dataclass) to read a pickled SurveyPlan
 while the plan waits for it (BENCHMARKS.md, "Small plans").
 

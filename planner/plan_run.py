@@ -50,10 +50,13 @@ class PlanRun:
         """Every file of the plan (and of each sortie, in sortie-NN/) into ``out_dir``, all or
         nothing; ``progress(1)`` after each file. ``helper``: a :class:`planner.aside.Helper`
         warmed with :func:`planner.maprender.prepare`, to draw map.png (a plan without
-        sorties)."""
+        sorties; with sorties, each map is drawn aside at its write and the helper is stopped
+        here)."""
         if self.sorties:
             from .sorties import write_with_sorties
 
+            if helper is not None:
+                helper.close()
             return write_with_sorties(
                 self.plan, self.sorties, Path(out_dir), overwrite=overwrite, progress=progress
             )

@@ -13,6 +13,10 @@ from planner.limits import ANNOUNCE_PHOTOS, MAX_PHOTOS
 
 from ..common import dumps_json, echo_table, json_option, overwrite_option, progress, warnings_once
 
+#: What map.png's helper runs while the plan is being made (planner.aside.Helper's warm-up, by
+#: name): the drawing imported (never the planner), Pillow's formats and the map's fonts loaded.
+MAP_WARM_UP = "planner.maprender:prepare"
+
 if TYPE_CHECKING:  # the planner is imported once map.png's helper is started (command)
     from planner.estimate import PlanEstimate
     from planner.plan_run import PlanRun
@@ -123,12 +127,12 @@ def command(
             if loud:
                 click.echo(f"  {time.monotonic() - started:6.1f} s  {what}", err=True)
 
-        # map.png's helper process, forked before the planner is imported (a small process forks
-        # in a fraction of a millisecond, and shares no page it would then have to copy),
-        # imports the drawing and gets Pillow and the fonts ready on the other core while this
-        # one imports the planner and plans; then it draws the map (sent as its view of the
-        # plan, planner.mapview) while this one writes the other files (planner.aside).
-        with Helper(warm=_prepare_map) as helper:
+        # map.png's helper, a second interpreter started first thing (planner.aside: spawned,
+        # asking glibc for huge pages), imports the drawing and gets Pillow and the fonts ready on
+        # the other core while this one imports the planner and plans (the helper never imports
+        # the planner: planner.maprender.prepare); then it draws the map (sent as its view of
+        # the plan, planner.mapview) while this one writes the other files.
+        with Helper(warm=MAP_WARM_UP) as helper:
             from planner.plan_run import plan_spec
 
             run = plan_spec(
@@ -139,14 +143,6 @@ def command(
                 run.write(out_dir, overwrite=overwrite, progress=advance, helper=helper)
         _present(run, out_dir, as_json)
         handled.update(run.plan.warnings)  # printed by _present, in the JSON, or left out on purpose
-
-
-def _prepare_map() -> None:
-    """In map.png's helper: import the drawing (numpy, shapely, Pillow; not the planner: the map
-    is sent as a planner.mapview.MapPlan), and load the map's fonts."""
-    from planner.maprender import prepare
-
-    prepare()
 
 
 def _present(run: PlanRun, out_dir: Path, as_json: bool) -> None:

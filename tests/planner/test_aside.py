@@ -1,15 +1,17 @@
-"""planner.aside: a job run in a child process forked beside this one (map.png while `sfap plan`
-writes the other files), its error raised here, and no child left behind.
+"""planner.aside: a job run in a child process beside this one (map.png while `sfap plan` writes
+the other files), its error raised here, and no child left behind.
 
-The fork path is exercised in real processes started for the test (``python -c``), each with one
-thread: the test runner's own process may have threads (pytest-xdist), where a fork is refused
-and the job runs in place, which one test here checks on purpose.
+Exercised in real processes started for the test (``python -c``), each with one thread: the test
+runner's own process may have threads (pytest-xdist), where a fork is refused and start_aside
+runs the job in place, which one test here checks on purpose. A Helper is a spawned interpreter:
+its warm-up and jobs are named functions of tests/support/aside_jobs.py.
 """
 
 from __future__ import annotations
 
 import json
 import os
+import platform
 import subprocess
 import sys
 import textwrap
@@ -26,27 +28,14 @@ PRELUDE = textwrap.dedent(
     import json, os, signal, sys, threading, time
     from planner.aside import Helper, can_fork, start_aside
     from planner.errors import InputError
+    from tests.support.aside_jobs import allocate_a_map_page, die, record, refuse
 
-    WARMED = None
-
-    def warm():
-        global WARMED
-        WARMED = os.getpid()
-
-    def record(path):
-        with open(path, "w") as handle:
-            json.dump({"pid": os.getpid(), "ppid": os.getppid(), "warmed": WARMED}, handle)
-
-    def refuse(value):
-        raise InputError(f"gsd_cm = {value}: must be above 0; give the GSD in centimetres")
-
-    def die():
-        os.kill(os.getpid(), signal.SIGKILL)
+    WARM = "tests.support.aside_jobs:warm"
     """
 )
 
 
-def run(body: str, tmp_path: Path, timeout: float = 60.0) -> dict[str, object]:
+def run(body: str, tmp_path: Path, timeout: float = 60.0, **env: str) -> dict[str, object]:
     """Run PRELUDE + body in a fresh Python (one thread); body prints one JSON line last."""
     script = PRELUDE + textwrap.dedent(body)
     done = subprocess.run(
@@ -55,7 +44,7 @@ def run(body: str, tmp_path: Path, timeout: float = 60.0) -> dict[str, object]:
         capture_output=True,
         text=True,
         timeout=timeout,
-        env={**os.environ, "OPENBLAS_NUM_THREADS": "1"},
+        env={**os.environ, "OPENBLAS_NUM_THREADS": "1", **env},
     )
     assert done.returncode == 0, done.stderr
     result: dict[str, object] = json.loads(done.stdout.strip().splitlines()[-1])
@@ -65,14 +54,18 @@ def run(body: str, tmp_path: Path, timeout: float = 60.0) -> dict[str, object]:
 needs_fork = pytest.mark.skipif(
     not hasattr(os, "fork") or len(os.sched_getaffinity(0)) < 2, reason="needs fork and two cores"
 )
+needs_spawn = pytest.mark.skipif(
+    not hasattr(os, "posix_spawn") or len(os.sched_getaffinity(0)) < 2,
+    reason="needs posix_spawn and two cores",
+)
 
 
-@needs_fork
+@needs_spawn
 def test_helper_runs_the_job_in_its_warmed_child(tmp_path: Path) -> None:
     result = run(
         """
         out = sys.argv[1] + "/job.json"
-        helper = Helper(warm=warm)
+        helper = Helper(warm=WARM)
         aside = helper.submit(record, out, what="job.json")
         forked = aside.forked
         aside.wait()
@@ -85,13 +78,68 @@ def test_helper_runs_the_job_in_its_warmed_child(tmp_path: Path) -> None:
     assert result["pid"] != result["me"]  # another process ran it
     assert result["ppid"] == result["me"]  # a child of this one
     assert result["warmed"] == result["pid"]  # warmed up in the process that ran the job
+    assert result["tunables"] == "glibc.malloc.hugetlb=1"
 
 
-@needs_fork
+@needs_spawn
+@pytest.mark.parametrize(
+    ("users", "helpers"),
+    [
+        ("glibc.malloc.check=0", "glibc.malloc.check=0:glibc.malloc.hugetlb=1"),
+        ("glibc.malloc.hugetlb=0", "glibc.malloc.hugetlb=0"),  # the user's say stands
+    ],
+)
+def test_the_helper_keeps_the_users_own_glibc_tunables(tmp_path: Path, users: str, helpers: str) -> None:
+    result = run(
+        """
+        out = sys.argv[1] + "/job.json"
+        helper = Helper()
+        helper.submit(record, out, what="job.json").wait()
+        print(json.dumps({"mine": os.environ["GLIBC_TUNABLES"], **json.load(open(out))}))
+        """,
+        tmp_path,
+        GLIBC_TUNABLES=users,
+    )
+    assert result["mine"] == users  # this process's environment is not changed
+    assert result["tunables"] == helpers
+
+
+def _glibc_takes_the_huge_page_tunable() -> bool:
+    name, version = platform.libc_ver()
+    return sys.platform == "linux" and name == "glibc" and tuple(map(int, version.split("."))) >= (2, 35)
+
+
+@needs_spawn
+@pytest.mark.skipif(not _glibc_takes_the_huge_page_tunable(), reason="needs Linux and glibc 2.35 or later")
+@pytest.mark.skipif(
+    not Path("/sys/kernel/mm/transparent_hugepage/enabled").exists()
+    or "[never]" in Path("/sys/kernel/mm/transparent_hugepage/enabled").read_text(),
+    reason="this kernel has transparent huge pages off",
+)
+def test_the_helpers_map_page_is_advised_huge_pages_and_this_process_is_not(tmp_path: Path) -> None:
+    """The kernel's own record (/proc/self/smaps, VmFlags "hg": madvise MADV_HUGEPAGE) of a map
+    page's memory: advised in the helper, not in the process that started it."""
+    result = run(
+        """
+        helper_out, here_out = sys.argv[1] + "/helper.json", sys.argv[1] + "/here.json"
+        helper = Helper()
+        helper.submit(allocate_a_map_page, helper_out, what="page").wait()
+        allocate_a_map_page(here_out)
+        print(json.dumps({"helper": json.load(open(helper_out)), "here": json.load(open(here_out))}))
+        """,
+        tmp_path,
+    )
+    helper, here = result["helper"], result["here"]
+    assert isinstance(helper, dict) and isinstance(here, dict)
+    assert helper["during"] > helper["before"]
+    assert here["during"] == here["before"]
+
+
+@needs_spawn
 def test_the_childs_error_is_raised_here_as_it_was(tmp_path: Path) -> None:
     result = run(
         """
-        helper = Helper(warm=warm)
+        helper = Helper(warm=WARM)
         aside = helper.submit(refuse, -1, what="map.png")
         try:
             aside.wait()
@@ -124,11 +172,12 @@ def test_a_child_killed_by_a_signal_is_an_error_naming_the_job(tmp_path: Path) -
     assert "out/map.png" in str(result["text"]) and "signal 9" in str(result["text"])
 
 
+@needs_spawn
 @needs_fork
 def test_close_and_cancel_stop_the_child_at_once_and_reap_it(tmp_path: Path) -> None:
     result = run(
         """
-        helper = Helper(warm=lambda: time.sleep(30))
+        helper = Helper(warm="tests.support.aside_jobs:warm_for_long")
         helper_pid = helper.pid
         started = time.monotonic()
         helper.close()
@@ -152,7 +201,9 @@ def test_close_and_cancel_stop_the_child_at_once_and_reap_it(tmp_path: Path) -> 
     assert result["gone"] == [True, True]
 
 
-def test_with_a_thread_running_the_job_runs_here(tmp_path: Path) -> None:
+@needs_spawn
+def test_with_a_thread_running_a_helper_still_runs_the_job_and_a_fork_does_not(tmp_path: Path) -> None:
+    """A spawned helper is safe beside other threads; a fork is not, so start_aside runs in place."""
     result = run(
         """
         stop = threading.Event()
@@ -160,10 +211,11 @@ def test_with_a_thread_running_the_job_runs_here(tmp_path: Path) -> None:
         thread.start()
         try:
             out = sys.argv[1] + "/job.json"
-            helper = Helper(warm=warm)
+            helper = Helper(warm=WARM)
             aside = helper.submit(record, out, what="job.json")
             aside.wait()
             refused = start_aside(lambda: refuse(0), "x")
+            in_place = not refused.forked
             try:
                 refused.wait()
                 raised = None
@@ -172,14 +224,41 @@ def test_with_a_thread_running_the_job_runs_here(tmp_path: Path) -> None:
         finally:
             stop.set()
             thread.join()
-        print(json.dumps({"me": os.getpid(), "helper": helper.pid, "raised": raised, **json.load(open(out))}))
+        print(json.dumps({"me": os.getpid(), "in_place": in_place, "raised": raised, **json.load(open(out))}))
         """,
         tmp_path,
     )
-    assert result["helper"] is None  # no child was forked
-    assert result["pid"] == result["me"]
-    assert result["warmed"] is None  # nothing warmed: the job ran cold, in place
+    assert result["pid"] != result["me"] and result["ppid"] == result["me"]
+    assert result["warmed"] == result["pid"]
+    assert result["in_place"] is True
     assert result["raised"] == "gsd_cm = 0: must be above 0; give the GSD in centimetres"
+
+
+@needs_spawn
+@needs_fork
+def test_a_job_the_helper_cannot_import_is_forked_instead(tmp_path: Path) -> None:
+    result = run(
+        """
+        def local_record(path):  # in __main__: another interpreter cannot import it by name
+            record(path)
+
+        out = sys.argv[1] + "/job.json"
+        helper = Helper(warm=WARM)
+        helper_pid = helper.pid
+        helper.submit(local_record, out, what="job.json").wait()
+        gone = False
+        try:
+            os.waitpid(helper_pid, os.WNOHANG)
+        except ChildProcessError:  # stopped and reaped
+            gone = True
+        print(json.dumps({"me": os.getpid(), "helper": helper_pid, "gone": gone, **json.load(open(out))}))
+        """,
+        tmp_path,
+    )
+    assert result["pid"] not in (result["me"], result["helper"])  # a fork of this process ran it
+    assert result["ppid"] == result["me"]
+    assert result["warmed"] is None
+    assert result["gone"] is True
 
 
 @needs_fork

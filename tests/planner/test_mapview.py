@@ -1,9 +1,10 @@
 """planner.mapview: the map's view of a plan, drawn in a process that never imports the planner.
 
-`sfap plan` forks map.png's helper before it imports the planner and sends it the plan's
-:class:`~planner.mapview.MapPlan`: the helper must be able to import the drawing and rebuild the
-view with numpy, shapely and Pillow alone, and draw the map the plan itself gives. Checked in
-fresh processes (``python -c``), whose modules are their own.
+`sfap plan` starts map.png's helper (a second interpreter) before it imports the planner and
+sends it the plan's :class:`~planner.mapview.MapPlan`: the helper must be able to import the
+drawing and rebuild the view with numpy, shapely and Pillow alone, and draw the map the plan
+itself gives. Checked in fresh processes (``python -c``), whose modules are their own, and in a
+real helper.
 """
 
 from __future__ import annotations
@@ -38,18 +39,37 @@ def _run(script: str) -> dict[str, object]:
     return result
 
 
-def test_the_drawing_imports_nothing_of_the_planning() -> None:
-    """The modules map.png's helper imports before the plan exists (sfap/commands/plan.py)."""
+def test_the_helper_draws_the_map_without_importing_the_planning(tmp_path: Path) -> None:
+    """A real helper, warmed up as `sfap plan` warms it, sent the gully's view: it draws the
+    plan's own map and has imported nothing of the planning by the end (its sys.modules)."""
+    from planner.mapplot import map_png_bytes
+    from planner.mapview import map_view
+    from planner.spec import load_spec
+    from planner.survey import plan_survey
+    from sfap.commands.plan import MAP_WARM_UP
+
+    plan = plan_survey(load_spec(REPO / "missions" / "bardenas-gully.toml"))
+    sent = tmp_path / "view.pickle"
+    sent.write_bytes(pickle.dumps(map_view(plan), protocol=pickle.HIGHEST_PROTOCOL))
+    png, modules = tmp_path / "map.png", tmp_path / "helper.json"
     result = _run(
         f"""
-        import json, sys
-        from planner.maprender import prepare
-        import planner.mapview
-        prepare()
-        print(json.dumps({{"loaded": [m for m in {PLANNING!r} if m in sys.modules]}}))
+        import json, os, pickle
+        from planner.aside import Helper
+        from tests.support.aside_jobs import draw_map_then_record
+        helper = Helper(warm={MAP_WARM_UP!r})
+        view = pickle.loads(open({str(sent)!r}, "rb").read())
+        aside = helper.submit(draw_map_then_record, view, {str(png)!r}, {str(modules)!r}, what="map.png")
+        spawned = aside.forked
+        aside.wait()
+        print(json.dumps({{"me": os.getpid(), "spawned": spawned}}))
         """
     )
-    assert result == {"loaded": []}
+    helper = json.loads(modules.read_text())
+    assert result["spawned"] is True and helper["ppid"] == result["me"]
+    assert "PIL.PngImagePlugin" in helper["modules"]  # it did draw and encode
+    assert [m for m in PLANNING if m in helper["modules"]] == []
+    assert png.read_bytes() == map_png_bytes(plan)
 
 
 def test_a_view_sent_to_a_fresh_process_draws_the_plans_own_map(tmp_path: Path) -> None:
