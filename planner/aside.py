@@ -37,6 +37,7 @@ import os
 import pickle
 import signal
 import sys
+import typing
 from collections.abc import Callable
 from typing import NoReturn
 
@@ -66,6 +67,26 @@ class Aside:
         self.pid = pid
         self._read_fd = read_fd
         self._error = error
+        self._send_fd: int | None = None  # a started job's pipe (Helper.start)
+        self._unsent: tuple[Callable[..., object], tuple[object, ...]] | None = None  # not begun yet
+
+    def send(self, value: object) -> None:
+        """Give a job begun by :meth:`Helper.start` the value its ``receive()`` returns (once).
+        A job the helper could not take begins now (:func:`start_aside`)."""
+        if self._send_fd is not None:
+            fd, self._send_fd = self._send_fd, None
+            try:
+                _write_message(fd, value)
+            except OSError as error:  # the helper is gone: wait() says why
+                log.debug("%s: the helper took no more (%s)", self.what, error)
+            finally:
+                os.close(fd)
+        elif self._unsent is not None:
+            (job, args), self._unsent = self._unsent, None
+            begun = start_aside(lambda: job(*args, lambda: value), self.what)
+            self.pid, self._read_fd, self._error = begun.pid, begun._read_fd, begun._error
+        else:
+            raise RuntimeError(f"{self.what}: nothing waits for a value")
 
     @property
     def forked(self) -> bool:
@@ -75,6 +96,9 @@ class Aside:
     def wait(self) -> None:
         """Wait for the job to end; raise what it raised (in the child: the same exception,
         unpickled; a child killed by a signal: an OSError naming the job and the signal)."""
+        if self._send_fd is not None or self._unsent is not None:
+            self.cancel()
+            raise RuntimeError(f"{self.what}: waited on before it was sent its value (Aside.send)")
         if self.pid is None:
             error, self._error = self._error, None
             if error is not None:
@@ -97,6 +121,10 @@ class Aside:
 
     def cancel(self) -> None:
         """Stop the job if it still runs (the caller failed: its result is not wanted)."""
+        self._unsent = None
+        if self._send_fd is not None:
+            os.close(self._send_fd)
+            self._send_fd = None
         if self.pid is not None:
             with contextlib.suppress(ProcessLookupError):
                 os.kill(self.pid, signal.SIGKILL)
@@ -152,9 +180,7 @@ def _report_and_exit(write_fd: int, run: Callable[[], object]) -> NoReturn:
                 report = pickle.dumps(error)
             except Exception:
                 report = f"{type(error).__name__}: {error}".encode()
-            view = memoryview(report)
-            while view:  # the parent reads it all when it waits
-                view = view[os.write(write_fd, view) :]
+            _write_all(write_fd, report)  # the parent reads it all when it waits
     finally:
         os._exit(status)
 
@@ -207,6 +233,7 @@ class Helper:
         _flush_std()
         job_read, job_write = os.pipe()
         report_read, report_write = os.pipe()
+        _widen(job_write)
         argv = [sys.executable, "-c", _HELPER_CODE, str(job_read), str(report_write), warm or "", *sys.path]
         try:
             os.set_inheritable(job_read, True)  # the child's two ends, and only those
@@ -227,23 +254,46 @@ class Helper:
         it is pickled by name; the arguments by value); otherwise, or when no helper runs or the
         arguments cannot be pickled, by :func:`start_aside`. ``what`` names the job in errors.
         Wait on the :class:`Aside` returned."""
+        aside = self._send(job, args, what, more=False)
+        return aside if aside is not None else start_aside(lambda: job(*args), what)
+
+    def start(self, job: Callable[..., object], *args: object, what: str) -> Aside:
+        """``job(*args, receive)`` begun in the helper now: ``receive()`` there returns the value
+        given later to :meth:`Aside.send` (the job's first part runs meanwhile). Where
+        :meth:`submit` would not send the job to the helper, it begins at :meth:`Aside.send`, by
+        :func:`start_aside`. Send, then wait on the :class:`Aside` returned (or cancel it)."""
+        aside = self._send(job, args, what, more=True)
+        if aside is None:
+            aside = Aside(what, None, None, None)
+            aside._unsent = (job, args)
+        return aside
+
+    def _send(
+        self, job: Callable[..., object], args: tuple[object, ...], what: str, *, more: bool
+    ) -> Aside | None:
+        """The job sent to the helper (``more``: its pipe left open for :meth:`Aside.send`), or
+        None, the helper stopped, when it cannot be (no helper, or it cannot import the job or
+        take the arguments)."""
         data = None
         if self.pid is not None and _importable(job):
             try:
-                data = pickle.dumps((job, args), protocol=pickle.HIGHEST_PROTOCOL)
+                data = pickle.dumps((job, args, more), protocol=pickle.HIGHEST_PROTOCOL)
             except Exception as error:  # an argument pickle cannot take: run here
                 log.debug("%s: not sent aside (%s)", what, error)
         if data is None:
             self.close()
-            return start_aside(lambda: job(*args), what)
-        assert self._job_fd is not None
-        with os.fdopen(self._job_fd, "wb") as pipe:  # closed: the job is whole
-            self._job_fd = None
-            pipe.write(data)
-        pid, self.pid = self.pid, None
-        report_fd, self._report_fd = self._report_fd, None
-        log.debug("%s: drawn aside by process %d", what, pid)
-        return Aside(what, pid, report_fd, None)
+            return None
+        assert self._job_fd is not None and self.pid is not None
+        job_fd, self._job_fd = self._job_fd, None
+        _write_all(job_fd, len(data).to_bytes(_LENGTH, "little") + data)
+        aside = Aside(what, self.pid, self._report_fd, None)
+        self.pid = self._report_fd = None
+        if more:
+            aside._send_fd = job_fd
+        else:
+            os.close(job_fd)  # closed: the job is whole
+        log.debug("%s: drawn aside by process %d", what, aside.pid)
+        return aside
 
     def close(self) -> None:
         """No job will come (the caller failed, or will do without): the helper, which has
@@ -278,17 +328,62 @@ def _serve_spawned(job_fd: int, report_fd: int, warm: str) -> NoReturn:
 
 
 def _serve(job_fd: int, warm: str) -> None:
-    """The helper's life: warm up, read one job (nothing: leave), run it."""
+    """The helper's life: warm up, read one job (nothing: leave), run it (with ``receive`` when
+    it was started: Helper.start)."""
     if warm:
         with contextlib.suppress(Exception):  # only a head start: the job says what fails
             module, name = warm.split(":")
             getattr(importlib.import_module(module), name)()
     with os.fdopen(job_fd, "rb") as pipe:
-        data = pipe.read()
-    if not data:
-        return
-    job, args = pickle.loads(data)
-    job(*args)
+        try:
+            job, args, more = _read_message(pipe)
+        except EOFError:  # no job came
+            return
+        if more:
+            job(*args, lambda: _read_message(pipe))
+        else:
+            job(*args)
+
+
+def _widen(fd: int) -> None:
+    """The pipe of ``fd`` made to hold the map's job of a plan of several thousand stations whole
+    (Linux; elsewhere, or when refused, it stays as it is): the parent then does not wait for the
+    helper, still warming up, to read its job."""
+    with contextlib.suppress(AttributeError, OSError):
+        import fcntl
+
+        fcntl.fcntl(fd, fcntl.F_SETPIPE_SZ, _PIPE_BYTES)
+
+
+#: The job pipe's size asked for: Linux's limit for a user's pipes (fs.pipe-max-size) by default.
+_PIPE_BYTES = 1 << 20
+
+#: Bytes of a message's length, ahead of its pickle, on the helper's job pipe.
+_LENGTH = 8
+
+
+def _write_all(fd: int, data: bytes) -> None:
+    view = memoryview(data)
+    while view:
+        view = view[os.write(fd, view) :]
+
+
+def _write_message(fd: int, value: object) -> None:
+    data = pickle.dumps(value, protocol=pickle.HIGHEST_PROTOCOL)
+    _write_all(fd, len(data).to_bytes(_LENGTH, "little") + data)
+
+
+def _read_message(pipe: typing.BinaryIO) -> typing.Any:
+    """The next value sent on the pipe (:func:`_write_message`); EOFError when the sender closed
+    it first."""
+    head = pipe.read(_LENGTH)
+    if len(head) < _LENGTH:
+        raise EOFError("the pipe was closed before a message")
+    size = int.from_bytes(head, "little")
+    data = pipe.read(size)
+    if len(data) < size:
+        raise EOFError("the pipe was closed within a message")
+    return pickle.loads(data)
 
 
 def _flush_std() -> None:

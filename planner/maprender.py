@@ -22,6 +22,7 @@ import math
 import os
 import textwrap
 from collections.abc import Sequence
+from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 from typing import Any
@@ -351,7 +352,30 @@ def _draw_sorties(
 
 def draw_map(plan: MapPlan, *, max_footprints: int, max_stations: int, dpi: int) -> Image.Image:
     """The map of ``plan`` (a plan's :func:`~planner.mapview.map_view`) as an RGB image, ``dpi``
-    pixels per inch.
+    pixels per inch: :func:`draw_body`, then :func:`finish` with the plan's texts."""
+    body = draw_body(plan, max_footprints=max_footprints, max_stations=max_stations, dpi=dpi)
+    return finish(body, plan.header, plan.caption)
+
+
+@dataclass
+class MapBody:
+    """A map drawn but for its header, caption and legend (:func:`draw_body`): the supersampled
+    page, the plan's name (the title) and the legend's entries."""
+
+    page: _Page | None  # None once finished
+    name: str
+    entries: list[tuple[str, dict[str, Any]]]
+
+
+def draw_body(
+    plan: MapPlan,
+    *,
+    max_footprints: int = 4000,
+    max_stations: int = DEFAULT_MAX_STATIONS,
+    dpi: int = 130,
+) -> MapBody:
+    """Everything of the map of ``plan`` but the lines that need the plan's summary (its
+    ``header`` and ``caption`` are not read): `sfap plan` draws it while the summary is made.
 
     Drawn for the scale of the page: footprints and stations only when they can be told apart
     (else left out, and the legend says so and where they are), each pass group in its colour
@@ -552,13 +576,22 @@ def draw_map(plan: MapPlan, *, max_footprints: int, max_stations: int, dpi: int)
     page.arrow((nx, box[1] + 0.16 * page.map_h), (nx, box[1] + 0.04 * page.map_h), "#000000", 2.0, 11)
     page.text((nx, box[1] + 0.16 * page.map_h), "N", 13, anchor="ma", bold=True)
 
-    # title, header, caption and legend
-    page.text((page.left, page.pt(0.2 * 72)), plan.name, 14, bold=True)
-    page.text((page.left, page.pt(0.58 * 72)), plan.header, 10)
-    page.text((page.left, page.height - page.pt(0.15 * 72)), plan.caption, 8, anchor="ld", fill="#424242")
     for note in simplified:
         entries.append((note, {"kind": "note"}))
-    _legend(page, entries)
+    return MapBody(page=page, name=plan.name, entries=entries)
+
+
+def finish(body: MapBody, header: str, caption: str) -> Image.Image:
+    """The map ``body`` with its title, ``header``, ``caption`` and legend, reduced to its size:
+    the RGB image. The body is finished once: its supersampled page (29 MB or more) is let go
+    here, to be freed before the map is encoded."""
+    page, body.page = body.page, None
+    if page is None:
+        raise ValueError("this map was finished already")
+    page.text((page.left, page.pt(0.2 * 72)), body.name, 14, bold=True)
+    page.text((page.left, page.pt(0.58 * 72)), header, 10)
+    page.text((page.left, page.height - page.pt(0.15 * 72)), caption, 8, anchor="ld", fill="#424242")
+    _legend(page, body.entries)
     return page.image.reduce(_SUPERSAMPLE)
 
 
@@ -575,7 +608,11 @@ def png_bytes(
         raise InputError(
             f"max_footprints = {max_footprints}, max_stations = {max_stations}: both must be 0 or more"
         )
-    rgb = draw_map(plan, max_footprints=max_footprints, max_stations=max_stations, dpi=dpi)
+    return encode_png(draw_map(plan, max_footprints=max_footprints, max_stations=max_stations, dpi=dpi))
+
+
+def encode_png(rgb: Image.Image) -> bytes:
+    """A drawn map as PNG bytes."""
     # A map is a few flat colours and their anti-aliased edges: a 256-colour palette keeps
     # them (no dithering) and encodes 3-4x faster and 4x smaller than 24-bit colour. zlib's
     # fastest level: the same pixels as its default (6) in half the time or less (10-20 ms of a
@@ -589,7 +626,16 @@ def png_bytes(
 def write_png(plan: MapPlan, path: str | os.PathLike[str], **options: int) -> Path:
     """map.png of ``plan`` (a plan's :func:`~planner.mapview.map_view`) written atomically to
     ``path``; ``options``: those of :func:`png_bytes`. Returns the path written."""
-    data = png_bytes(plan, **options)
+    return _write(png_bytes(plan, **options), path)
+
+
+def write_finished(body: MapBody, header: str, caption: str, path: str | os.PathLike[str]) -> Path:
+    """map.png of a :func:`draw_body` with the plan's ``header`` and ``caption``, written
+    atomically to ``path``. Returns the path written."""
+    return _write(encode_png(finish(body, header, caption)), path)
+
+
+def _write(data: bytes, path: str | os.PathLike[str]) -> Path:
     written = atomic_write_bytes(path, data)
     log.debug("wrote map: %s (%d bytes)", written, len(data))
     return written

@@ -13,8 +13,9 @@ of the map (planner.maplayout) reads a plan or its view alike.
 
 from __future__ import annotations
 
+import dataclasses
 import os
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -107,20 +108,53 @@ def _stations(st: Stations) -> MapStations:
 
 def map_view(plan: SurveyPlan, sorties: Sequence[SurveyPlan] = ()) -> MapPlan:
     """The map's view of ``plan`` and of its ``sorties`` (their own plans, numbered from 1)."""
-    from .maplayout import caption_text, header_text
-
-    return MapPlan(
+    header, caption = map_texts(plan)
+    geometry = map_geometry(
         name=plan.name,
         home_xy_m=plan.home_xy_m,
         area_xy=plan.area_xy,
         exclusions_xy=plan.exclusions_xy,
-        passes=tuple(_pass(p) for p in plan.passes),
-        stations=_stations(plan.stations),
+        passes=plan.passes,
+        stations=plan.stations,
         path_xy_m=plan.path_xy_m,
-        header=header_text(plan),
-        caption=caption_text(plan),
+        sorties=sorties,
+    )
+    return dataclasses.replace(geometry, header=header, caption=caption)
+
+
+def map_geometry(
+    *,
+    name: str,
+    home_xy_m: tuple[float, float],
+    area_xy: Polygon | MultiPolygon,
+    exclusions_xy: tuple[Polygon, ...],
+    passes: Sequence[FlightPass],
+    stations: Stations,
+    path_xy_m: NDArray[np.float64],
+    sorties: Sequence[SurveyPlan] = (),
+) -> MapPlan:
+    """The map's view of a plan from its parts (a :class:`~planner.plan.SurveyPlan`'s fields of
+    those names), before the plan itself exists: its header and caption are empty (they need
+    the plan's summary: :func:`map_texts`)."""
+    return MapPlan(
+        name=name,
+        home_xy_m=home_xy_m,
+        area_xy=area_xy,
+        exclusions_xy=exclusions_xy,
+        passes=tuple(_pass(p) for p in passes),
+        stations=_stations(stations),
+        path_xy_m=path_xy_m,
+        header="",
+        caption="",
         sorties=tuple(_stations(s.stations) for s in sorties),
     )
+
+
+def map_texts(plan: SurveyPlan) -> tuple[str, str]:
+    """The map's header and caption of ``plan`` (planner.maplayout)."""
+    from .maplayout import caption_text, header_text
+
+    return header_text(plan), caption_text(plan)
 
 
 def write_map_png(view: MapPlan, path: str | os.PathLike[str]) -> None:
@@ -130,3 +164,14 @@ def write_map_png(view: MapPlan, path: str | os.PathLike[str]) -> None:
     from .maprender import write_png
 
     write_png(view, path)
+
+
+def write_map_png_when_told(view: MapPlan, receive: Callable[[], tuple[str, str, str]]) -> None:
+    """map.png of ``view`` (:func:`map_geometry`: no header nor caption yet), all of it but those
+    drawn at once; then its header, caption and the path to write it to, from ``receive()``
+    (planner.aside.Helper.start: `sfap plan` draws the map while the plan's summary is made)."""
+    from .maprender import draw_body, write_finished
+
+    body = draw_body(view)
+    header, caption, path = receive()
+    write_finished(body, header, caption, path)

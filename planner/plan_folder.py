@@ -33,7 +33,7 @@ import numpy as np
 from numpy.typing import NDArray
 from shapely.geometry import MultiPolygon, Polygon, shape
 
-from .aside import Helper, start_aside
+from .aside import Aside, Helper, start_aside
 from .camera import Orientation
 from .errors import PlanFolderError
 from .kinds import PassKind
@@ -281,6 +281,7 @@ def write_outputs(
     overwrite: bool = False,
     progress: Callable[[int], None] | None = None,
     helper: Helper | None = None,
+    map_begun: Aside | None = None,
 ) -> list[Path]:
     """Write every output file; on any failure nothing is left behind and ``out_dir`` is
     unchanged. ``progress(1)`` is called after each file.
@@ -290,17 +291,22 @@ def write_outputs(
     other files are written here; it is waited for before the folder is moved into place. A
     ``helper`` (started with planner.maprender.prepare before the plan was made) draws it
     instead, with Pillow and the fonts already loaded: it is sent the map's view of the plan
-    (planner.mapview), which it reads without importing the planner."""
-    from .mapview import map_view, write_map_png
+    (planner.mapview), which it reads without importing the planner. ``map_begun``: the map
+    begun by such a helper during the planning (planner.plan_run.plan_spec), sent here its
+    header, caption and path in the staging folder."""
+    from .mapview import map_texts, map_view, write_map_png
 
     names = output_files(plan)
     final = Path(out_dir)
     with staged_output_dir(final, overwrite=overwrite) as staging:
         map_path, what = staging / "map.png", str(final / "map.png")
-        view = map_view(plan)
-        if helper is not None:
-            map_png = helper.submit(write_map_png, view, map_path, what=what)
+        if map_begun is not None:
+            map_png, map_png.what = map_begun, what
+            map_png.send((*map_texts(plan), map_path))
+        elif helper is not None:
+            map_png = helper.submit(write_map_png, map_view(plan), map_path, what=what)
         else:
+            view = map_view(plan)
             map_png = start_aside(lambda: write_map_png(view, map_path), what)
         try:
             writers = _writers(plan)

@@ -18,19 +18,22 @@ from .plan import SurveyPlan
 from .spec import MissionSpec
 
 if TYPE_CHECKING:  # planner.sorties is imported only for a vehicle with an endurance
-    from .aside import Helper
+    from .aside import Aside, Helper
+    from .mapview import MapPlan
     from .sorties import Sortie
 
 
 @dataclass(frozen=True, kw_only=True)
 class PlanRun:
     """A planned spec: the plan (resumed when asked), its sorties (none when the vehicle has no
-    endurance) and the station it was resumed from (None: the whole mission)."""
+    endurance), the station it was resumed from (None: the whole mission), and map.png's
+    drawing when it was begun during the planning (:func:`plan_spec` with a helper)."""
 
     spec: MissionSpec
     plan: SurveyPlan
     sorties: tuple[Sortie, ...] = field(default=())
     resumed_from_station: int | None = None
+    map_begun: Aside | None = field(default=None, compare=False)
 
     @property
     def file_count(self) -> int:
@@ -48,10 +51,10 @@ class PlanRun:
         helper: Helper | None = None,
     ) -> list[Path]:
         """Every file of the plan (and of each sortie, in sortie-NN/) into ``out_dir``, all or
-        nothing; ``progress(1)`` after each file. ``helper``: a :class:`planner.aside.Helper`
-        warmed with :func:`planner.maprender.prepare`, to draw map.png (a plan without
-        sorties; with sorties, each map is drawn aside at its write and the helper is stopped
-        here)."""
+        nothing; ``progress(1)`` after each file. map.png is finished by the helper that began
+        it during the planning (:attr:`map_begun`), else drawn by ``helper`` (a
+        :class:`planner.aside.Helper` warmed with :func:`planner.maprender.prepare`; with
+        sorties, each map is drawn aside at its write and the helper is stopped here)."""
         if self.sorties:
             from .sorties import write_with_sorties
 
@@ -62,7 +65,19 @@ class PlanRun:
             )
         from .plan_folder import write_outputs
 
-        return write_outputs(self.plan, out_dir, overwrite=overwrite, progress=progress, helper=helper)
+        try:
+            return write_outputs(
+                self.plan,
+                out_dir,
+                overwrite=overwrite,
+                progress=progress,
+                helper=helper,
+                map_begun=self.map_begun,
+            )
+        except BaseException:
+            if self.map_begun is not None:
+                self.map_begun.cancel()  # never sent its texts when the folder was refused
+            raise
 
     def summary(self) -> dict[str, object]:
         """summary.json's figures, with the sorties and the station resumed from."""
@@ -84,13 +99,17 @@ def plan_spec(
     max_photos: int | None = MAX_PHOTOS,
     announce: Callable[[PlanEstimate], None] | None = None,
     stage: Callable[[str], None] | None = None,
+    helper: Helper | None = None,
 ) -> PlanRun:
     """Plan the mission spec ``spec_file``; with ``resume_from`` (a station, 0-based in flight
     order) or ``resume_record`` (the folder sfap monitor recorded, or its triggers.csv: after
     the last station it reached) only what is left. Sorties when the spec's vehicle has an
     endurance. A block estimated beyond ``max_photos`` photos is refused at once (planner.estimate);
     ``announce(estimate)`` is called first, before the planning itself; ``stage(what)`` at each
-    step of the planning (progress)."""
+    step of the planning (progress). With a ``helper`` (a :class:`planner.aside.Helper` warmed
+    with :func:`planner.maprender.prepare`), map.png is begun there as soon as the mission is
+    built (planner.survey.plan_polygons: ``on_built``), while the summary is made, unless the
+    plan is resumed, cut into sorties or a corridor: :meth:`PlanRun.write` finishes it."""
     from .resume import last_station_from_record, resume_plan
     from .spec import load_spec
     from .survey import plan_survey
@@ -104,7 +123,27 @@ def plan_spec(
         guess = estimate_survey(spec)
         if guess is not None:
             announce(guess)
-    plan = plan_survey(spec, max_photos=max_photos, stage=stage)
+    map_begun: Aside | None = None
+
+    def begin_map(view: MapPlan) -> None:
+        nonlocal map_begun
+        from .mapview import write_map_png_when_told
+
+        assert helper is not None
+        map_begun = helper.start(write_map_png_when_told, view, what="map.png")
+
+    whole = resume_from is None and resume_record is None and spec.vehicle.endurance_s is None
+    try:
+        plan = plan_survey(
+            spec,
+            max_photos=max_photos,
+            stage=stage,
+            on_built=begin_map if helper is not None and whole else None,
+        )
+    except BaseException:
+        if map_begun is not None:
+            map_begun.cancel()
+        raise
     if resume_record is not None:
         resume_from = last_station_from_record(plan, Path(resume_record)) + 1
         if resume_from >= len(plan.stations):
@@ -121,4 +160,6 @@ def plan_spec(
         if stage is not None:
             stage("splitting into sorties")
         sorties = tuple(split_sorties(plan))
-    return PlanRun(spec=spec, plan=plan, sorties=sorties, resumed_from_station=resume_from)
+    return PlanRun(
+        spec=spec, plan=plan, sorties=sorties, resumed_from_station=resume_from, map_begun=map_begun
+    )

@@ -24,10 +24,11 @@ mission) are planner.survey_steps.
 
 from __future__ import annotations
 
+import functools
 import itertools
 import logging
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -44,7 +45,8 @@ from .estimate import PassGeometry, PlanEstimate, estimate, too_large
 from .footprint import near_far_gsd_cm, tilted_gsd_cm
 from .kinds import PassKind
 from .limits import MAX_PHOTOS
-from .lines import layout_pass
+from .lines import Segment, layout_pass
+from .mapview import MapPlan, map_geometry
 from .mission import VehicleType
 from .mission_builder import BuiltMission, PassPlan
 from .plan import FlightPass, PlanLayout, SurveyPlan
@@ -54,11 +56,16 @@ log = logging.getLogger(__name__)
 
 
 def plan_survey(
-    spec: MissionSpec, *, max_photos: int | None = MAX_PHOTOS, stage: Callable[[str], None] | None = None
+    spec: MissionSpec,
+    *,
+    max_photos: int | None = MAX_PHOTOS,
+    stage: Callable[[str], None] | None = None,
+    on_built: Callable[[MapPlan], None] | None = None,
 ) -> SurveyPlan:
     """Plan the survey a spec describes. Raises SfapError subclasses with the fix; a block
     estimated at more than ``max_photos`` photos is refused at once (planner.estimate; None: no
-    limit). ``stage(what)`` is told each step of a block's planning as it starts (progress)."""
+    limit). ``stage(what)`` is told each step of a block's planning as it starts (progress).
+    ``on_built(view)``: see :func:`plan_polygons` (a corridor does not call it)."""
     survey = spec.survey
     vehicle = spec.vehicle
     if vehicle.type is VehicleType.FIXED_WING and survey.trigger is TriggerMode.HOVER:
@@ -73,7 +80,7 @@ def plan_survey(
         return plan_corridor(spec)
     polygons = load_polygons(spec.area_path)
     exclusions = [p for path in spec.exclude_paths for p in load_polygons(path)]
-    return plan_polygons(spec, polygons, exclusions, max_photos=max_photos, stage=stage)
+    return plan_polygons(spec, polygons, exclusions, max_photos=max_photos, stage=stage, on_built=on_built)
 
 
 def estimate_survey(spec: MissionSpec) -> PlanEstimate | None:
@@ -135,9 +142,13 @@ def plan_polygons(
     *,
     max_photos: int | None = MAX_PHOTOS,
     stage: Callable[[str], None] | None = None,
+    on_built: Callable[[MapPlan], None] | None = None,
 ) -> SurveyPlan:
     """Plan over polygons already loaded (lon/lat degrees); :func:`plan_survey` reads them from
-    the spec's files."""
+    the spec's files. ``on_built(view)`` is given the map's view of the plan
+    (:func:`planner.mapview.map_geometry`: its header and caption still empty) as soon as the
+    mission is built, before the coverage figures and the summary are made: `sfap plan` starts
+    drawing map.png with it."""
     survey = spec.survey
     warnings: list[str] = []
 
@@ -169,7 +180,7 @@ def plan_polygons(
     def attempt(scale: float) -> _Attempt:
         del warnings[:]
         step(f"laying out the lines of {len(pass_defs)} pass{'es' if len(pass_defs) != 1 else ''}")
-        pass_plans, views, speed_m_s = _lay_out_passes(
+        pass_plans, first_views, speed_m_s = _lay_out_passes(
             spec, pass_defs, area_xy, blocked_xy, alt_agl_m, gsd_cm, scale, warnings
         )
         # 4-5. route, mission and stations --------------------------------------------------------
@@ -177,7 +188,9 @@ def plan_polygons(
         built = steps.build(
             spec, site, home, home_xy, alt_agl_m=alt_agl_m, speed_m_s=speed_m_s, passes=pass_plans
         )
-        return _Attempt(built=built, terrain_passes=pass_plans, views=views, speed_m_s=speed_m_s)
+        return _Attempt(
+            built=built, terrain_passes=pass_plans, first_pass_views=first_views, speed_m_s=speed_m_s
+        )
 
     laid, fit = steps.fit_to_terrain(
         spec, site, home, home_xy, alt_agl_m=alt_agl_m, dem=dem, attempt=attempt, warnings=warnings
@@ -203,6 +216,18 @@ def plan_polygons(
         )
         for p in pass_plans
     )
+    if on_built is not None:
+        on_built(
+            map_geometry(
+                name=spec.name,
+                home_xy_m=home_xy,
+                area_xy=site.area_xy,
+                exclusions_xy=site.zones_xy,
+                passes=passes,
+                stations=fit.built.stations,
+                path_xy_m=fit.built.path_xy_m,
+            )
+        )
     fix = "; raise front_overlap_pct to at least 50" if survey.front_overlap_pct < 50 else ""
     return steps.finish_plan(
         spec,
@@ -235,8 +260,30 @@ class _Attempt:
 
     built: BuiltMission
     terrain_passes: list[PassPlan]
-    views: ViewShares
+    first_pass_views: _FirstPassViews
     speed_m_s: float
+
+    @functools.cached_property
+    def views(self) -> ViewShares:
+        """The first pass's coverage figures, counted when first asked for: after the mission
+        is built (the map is started first), and only for the attempt kept."""
+        return self.first_pass_views.count()
+
+
+@dataclass(frozen=True)
+class _FirstPassViews:
+    """What the first pass's coverage figures are counted from (planner.coverage.view_shares)."""
+
+    area_uv: Polygon | MultiPolygon
+    segments: Sequence[Segment]
+    rect: ex.FrameRectangle
+    trigger_distance_m: float
+    line_spacing_m: float
+
+    def count(self) -> ViewShares:
+        return view_shares(
+            self.area_uv, self.segments, self.rect, self.trigger_distance_m, self.line_spacing_m
+        )
 
 
 def _lay_out_passes(
@@ -248,14 +295,15 @@ def _lay_out_passes(
     gsd_cm: float,
     scale: float,
     warnings: list[str],
-) -> tuple[list[PassPlan], ViewShares, float]:
-    """Lines and stations of every pass; ``scale`` (<= 1) shrinks the frame rectangle to its
-    size on the highest ground under the frames (1 over flat ground)."""
+) -> tuple[list[PassPlan], _FirstPassViews, float]:
+    """Lines and stations of every pass, and what the first pass's coverage figures are counted
+    from; ``scale`` (<= 1) shrinks the frame rectangle to its size on the highest ground under
+    the frames (1 over flat ground)."""
     survey = spec.survey
     camera = spec.camera
     speed_m_s = survey.speed_m_s
     pass_plans: list[PassPlan] = []
-    views: ViewShares | None = None
+    views: _FirstPassViews | None = None
     for index, pdef in enumerate(pass_defs):
         up = (
             pdef.look_heading_deg
@@ -281,7 +329,7 @@ def _lay_out_passes(
                 f"without flying over them"
             )
         if index == 0:
-            views = view_shares(area_uv, segments, rect, trigger_m, spacing_m)
+            views = _FirstPassViews(area_uv, segments, rect, trigger_m, spacing_m)
         near_gsd, far_gsd = near_far_gsd_cm(camera, pass_alt_m, pdef.tilt_deg)
         pass_plans.append(
             PassPlan(

@@ -131,13 +131,14 @@ def command(
         # asking glibc for huge pages), imports the drawing and gets Pillow and the fonts ready on
         # the other core while this one imports the planner and plans (the helper never imports
         # the planner: planner.maprender.prepare); then it draws the map (sent as its view of
-        # the plan, planner.mapview) while this one writes the other files.
+        # the plan, planner.mapview, as soon as the mission is built) while this one makes the
+        # summary and writes the other files.
         with Helper(warm=MAP_WARM_UP) as helper:
             from planner.plan_run import plan_spec
 
             run = plan_spec(
                 spec_file, resume_from=resume_from, resume_record=resume_record, max_photos=max_photos,
-                announce=announce, stage=stage,
+                announce=announce, stage=stage, helper=helper,
             )  # fmt: skip
             with progress("writing", run.file_count, enabled=not no_progress and not as_json) as advance:
                 run.write(out_dir, overwrite=overwrite, progress=advance, helper=helper)

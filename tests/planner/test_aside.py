@@ -28,7 +28,14 @@ PRELUDE = textwrap.dedent(
     import json, os, signal, sys, threading, time
     from planner.aside import Helper, can_fork, start_aside
     from planner.errors import InputError
-    from tests.support.aside_jobs import allocate_a_map_page, die, record, refuse
+    from tests.support.aside_jobs import allocate_a_map_page, begin_then_record, die, record, refuse
+
+    def wait_for(path, seconds=30.0):
+        end = time.monotonic() + seconds
+        while not os.path.exists(path):
+            if time.monotonic() > end:
+                raise TimeoutError(path)
+            time.sleep(0.005)
 
     WARM = "tests.support.aside_jobs:warm"
     """
@@ -259,6 +266,115 @@ def test_a_job_the_helper_cannot_import_is_forked_instead(tmp_path: Path) -> Non
     assert result["ppid"] == result["me"]
     assert result["warmed"] is None
     assert result["gone"] is True
+
+
+@needs_spawn
+def test_a_started_job_runs_its_first_part_before_it_is_sent_its_value(tmp_path: Path) -> None:
+    result = run(
+        """
+        begun, out = sys.argv[1] + "/begun", sys.argv[1] + "/job.json"
+        helper = Helper(warm=WARM)
+        aside = helper.start(begin_then_record, begun, out, what="job.json")
+        wait_for(begun)  # the job has begun: no value was sent yet
+        sent_after = os.path.exists(out)
+        aside.send({"header": "GSD 2.40 cm", "path": "x/map.png"})
+        aside.wait()
+        print(json.dumps({"me": os.getpid(), "done_before_send": sent_after,
+                          "begun_by": int(open(begun).read()), **json.load(open(out))}))
+        """,
+        tmp_path,
+    )
+    assert result["done_before_send"] is False
+    assert result["begun_by"] == result["pid"] != result["me"]
+    assert result["warmed"] == result["pid"]
+    assert result["value"] == {"header": "GSD 2.40 cm", "path": "x/map.png"}
+
+
+@needs_spawn
+@needs_fork
+def test_a_started_job_the_helper_cannot_import_begins_at_its_send(tmp_path: Path) -> None:
+    result = run(
+        """
+        def local(begun, out, receive):  # in __main__: another interpreter cannot import it
+            begin_then_record(begun, out, receive)
+
+        begun, out = sys.argv[1] + "/begun", sys.argv[1] + "/job.json"
+        helper = Helper(warm=WARM)
+        helper_pid = helper.pid
+        aside = helper.start(local, begun, out, what="job.json")
+        early = os.path.exists(begun)
+        aside.send([1, 2])
+        aside.wait()
+        print(json.dumps({"me": os.getpid(), "helper": helper_pid, "early": early, **json.load(open(out))}))
+        """,
+        tmp_path,
+    )
+    assert result["early"] is False
+    assert result["pid"] not in (result["me"], result["helper"])
+    assert result["ppid"] == result["me"]
+    assert result["value"] == [1, 2]
+
+
+@needs_spawn
+def test_a_started_job_never_sent_is_stopped_not_waited_for_ever(tmp_path: Path) -> None:
+    result = run(
+        """
+        begun, out = sys.argv[1] + "/begun", sys.argv[1] + "/job.json"
+        outcomes = []
+        for how in ("wait", "cancel"):
+            aside = Helper(warm=WARM).start(begin_then_record, begun, out, what="map.png")
+            pid = aside.pid
+            wait_for(begun)
+            os.remove(begun)
+            if how == "wait":
+                try:
+                    aside.wait()
+                    outcomes.append("no error")
+                except RuntimeError as error:
+                    outcomes.append(str(error))
+            else:
+                aside.cancel()
+                outcomes.append("cancelled")
+            try:
+                os.waitpid(pid, os.WNOHANG)
+                outcomes.append("child left")
+            except ChildProcessError:
+                outcomes.append("reaped")
+        print(json.dumps({"outcomes": outcomes, "recorded": os.path.exists(out)}))
+        """,
+        tmp_path,
+        timeout=30.0,
+    )
+    assert result["outcomes"] == [
+        "map.png: waited on before it was sent its value (Aside.send)",
+        "reaped",
+        "cancelled",
+        "reaped",
+    ]
+    assert result["recorded"] is False
+
+
+@needs_spawn
+def test_a_started_job_whose_helper_died_is_an_error_at_wait_not_at_send(tmp_path: Path) -> None:
+    result = run(
+        """
+        begun, out = sys.argv[1] + "/begun", sys.argv[1] + "/job.json"
+        aside = Helper(warm=WARM).start(begin_then_record, begun, out, what="out/map.png")
+        wait_for(begun)
+        os.kill(aside.pid, signal.SIGKILL)
+        time.sleep(0.2)
+        aside.send("x" * 200_000)  # more than the pipe holds were nobody reading
+        try:
+            aside.wait()
+            outcome = None
+        except OSError as error:
+            outcome = str(error)
+        print(json.dumps({"outcome": outcome}))
+        """,
+        tmp_path,
+        timeout=30.0,
+    )
+    assert result["outcome"] == "out/map.png: the process writing it was ended by signal 9"
 
 
 @needs_fork

@@ -9,12 +9,23 @@ real helper.
 
 from __future__ import annotations
 
+import dataclasses
 import json
+import os
 import pickle
 import subprocess
 import sys
 import textwrap
+from dataclasses import fields
 from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from planner.errors import OutputExistsError
+from planner.mapview import MapPlan
+from planner.plan import SurveyPlan
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -98,22 +109,12 @@ def test_a_view_sent_to_a_fresh_process_draws_the_plans_own_map(tmp_path: Path) 
     assert drawn.read_bytes() == map_png_bytes(plan)
 
 
-def test_the_view_carries_each_field_the_map_reads_from_the_plan() -> None:
-    """Field by field, by name, against the plan it was taken from (the quarry block: nadir,
-    crosshatch and four obliques looking four ways, so that no two passes are alike): every
-    pass, line and station column, and the texts the matplotlib map writes from the plan."""
-    from dataclasses import fields
-
-    import numpy as np
-
+def _assert_view_of(view: MapPlan, plan: SurveyPlan) -> None:
+    """Field by field, by name, the view against the plan it was taken from: every pass, line
+    and station column, and the texts the matplotlib map writes from the plan."""
     from planner.maplayout import caption_text, header_text
-    from planner.mapview import MapLine, MapPass, MapStations, map_view
-    from planner.spec import load_spec
-    from planner.survey import plan_survey
+    from planner.mapview import MapLine, MapPass, MapStations
 
-    plan = plan_survey(load_spec(REPO / "missions" / "quarry-block.toml"))
-    view = map_view(plan)
-    assert len({(p.kind, p.look_heading_deg) for p in view.passes}) == len(plan.passes) == 6
     for seen, planned in zip(view.passes, plan.passes, strict=True):
         for f in fields(MapPass):
             if f.name != "lines":
@@ -130,3 +131,80 @@ def test_the_view_carries_each_field_the_map_reads_from_the_plan() -> None:
     assert np.array_equal(view.path_xy_m, plan.path_xy_m)
     assert (view.header, view.caption) == (header_text(plan), caption_text(plan))
     assert view.sorties == ()
+
+
+def test_the_view_carries_each_field_the_map_reads_from_the_plan() -> None:
+    """The quarry block: nadir, crosshatch and four obliques looking four ways, so that no two
+    passes are alike."""
+    from planner.mapview import map_view
+    from planner.spec import load_spec
+    from planner.survey import plan_survey
+
+    plan = plan_survey(load_spec(REPO / "missions" / "quarry-block.toml"))
+    assert len({(p.kind, p.look_heading_deg) for p in plan.passes}) == len(plan.passes) == 6
+    _assert_view_of(map_view(plan), plan)
+
+
+@pytest.mark.parametrize("spec", ["quarry-block.toml", "bardenas-gully-terrain.toml"])
+def test_the_view_given_when_the_mission_is_built_is_the_plans_own(
+    spec: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """planner.survey's ``on_built``: the view handed out before the coverage figures are
+    counted (the order recorded) is, but for the texts it cannot have yet, the view of the plan
+    it becomes; over terrain, of the attempt kept, the figures counted for it alone."""
+    import planner.survey as survey
+    from planner.maplayout import caption_text, header_text
+    from planner.spec import load_spec
+
+    events: list[str] = []
+    views: list[MapPlan] = []
+    count = survey.view_shares
+
+    def counting(*args: Any) -> Any:
+        events.append("counted")
+        return count(*args)
+
+    def on_built(view: MapPlan) -> None:
+        events.append("built")
+        views.append(view)
+
+    monkeypatch.setattr(survey, "view_shares", counting)
+    plan = survey.plan_survey(load_spec(REPO / "missions" / spec), on_built=on_built)
+    assert events == ["built", "counted"]
+    (early,) = views
+    assert (early.header, early.caption) == ("", "")
+    _assert_view_of(dataclasses.replace(early, header=header_text(plan), caption=caption_text(plan)), plan)
+
+
+def test_plan_spec_begins_the_map_during_the_planning_of_a_whole_plan_only(tmp_path: Path) -> None:
+    """With a helper, `sfap plan`'s planning begins map.png as soon as the mission is built:
+    for a whole plan, and there the same bytes as drawn from the plan; not for a resumed plan,
+    sorties or a corridor (drawn at the write as before). A refused folder stops the begun map."""
+    from planner.aside import Helper
+    from planner.mapplot import map_png_bytes
+    from planner.plan_run import plan_spec
+    from sfap.commands.plan import MAP_WARM_UP
+
+    cases = [
+        ("bardenas-gully.toml", {}, True),
+        ("bardenas-gully.toml", {"resume_from": 40}, False),
+        ("quarry-block-sorties.toml", {}, False),
+        ("bardenas-stream-corridor.toml", {}, False),
+    ]
+    for k, (spec, options, begins) in enumerate(cases):
+        out = tmp_path / f"out{k}"
+        with Helper(warm=MAP_WARM_UP) as helper:
+            run = plan_spec(REPO / "missions" / spec, helper=helper, **options)  # type: ignore[arg-type]
+            assert (run.map_begun is not None) is begins, (spec, options)
+            run.write(out, helper=helper)
+        if not run.sorties:
+            assert (out / "map.png").read_bytes() == map_png_bytes(run.plan), (spec, options)
+
+    with Helper(warm=MAP_WARM_UP) as helper:
+        run = plan_spec(REPO / "missions" / "bardenas-gully.toml", helper=helper)
+        assert run.map_begun is not None and run.map_begun.pid is not None
+        pid = run.map_begun.pid
+        with pytest.raises(OutputExistsError):
+            run.write(tmp_path / "out0", helper=helper)  # exists: --overwrite not given
+    with pytest.raises(ChildProcessError):  # stopped and reaped
+        os.waitpid(pid, os.WNOHANG)

@@ -8,6 +8,7 @@ import os
 import signal
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 from planner.errors import InputError
@@ -77,3 +78,13 @@ def draw_map_then_record(view: object, png: str, path: str) -> None:
 
     write_map_png(view, png)  # type: ignore[arg-type]
     record(path)
+
+
+def begin_then_record(begun: str, path: str, receive: Callable[[], object]) -> None:
+    """Started by Helper.start: says it has begun (the file ``begun``), waits for its value, then
+    :func:`record` with the value."""
+    Path(begun).write_text(str(os.getpid()))
+    value = receive()
+    record(path)
+    data = json.loads(Path(path).read_text())
+    Path(path).write_text(json.dumps({**data, "value": value}))
