@@ -22,9 +22,9 @@ plan in about a millisecond) and runs it at once. Spawned rather than forked for
 - glibc reads its tunables only when a process starts, and the helper is started asking for
   transparent huge pages (``glibc.malloc.hugetlb=1``: glibc 2.35 and later advise the kernel to
   back large allocations with large pages where it allows that on request). The map's
-  supersampled page is 29 MB: in 4 KiB pages, 7,100 page faults, a third of the map's time on a
-  virtual machine; with the advice, about 1,000 (BENCHMARKS.md). Where the kernel or the C
-  library does not take the advice, nothing changes.
+  supersampled page, 29 MB when it was the whole page, took 7,100 page faults in 4 KiB pages, a
+  third of the map's time on a virtual machine; with the advice, about 1,000 (BENCHMARKS.md).
+  Where the kernel or the C library does not take the advice, nothing changes.
 - a spawned child shares no page with this one, and is safe with other threads running.
 """
 

@@ -6,9 +6,11 @@ sorties as outlines with their numbers. The matplotlib figure keeps the simpler 
 
 matplotlib costs about 0.3 s to import and 0.2-0.3 s to draw and encode this map, more than
 planning and writing every other output of a small plan together; Pillow imports in about
-0.01 s. The map is drawn at twice its size and reduced (anti-aliasing), in the same page layout
-(:func:`planner.mapplot.map_frame`), colours, legend, header and caption texts as the matplotlib
-figure, and saved as a 256-colour PNG.
+0.01 s. The map box and the legend are drawn at twice their size and reduced (anti-aliasing),
+the margins' texts and axes at the PNG's own size (FreeType anti-aliases text at any size; drawn
+at twice it, the margins were half the page's pixels to fill, clear, draw and reduce), in the
+same page layout (:func:`planner.mapplot.map_frame`), colours, legend, header and caption texts
+as the matplotlib figure, and saved as a 256-colour PNG.
 
 Sizes are given in points (1/72 inch) as in matplotlib, and turned into pixels at the PNG's dpi.
 """
@@ -37,6 +39,7 @@ from .maplayout import AREA_EDGE as _AREA_EDGE
 from .maplayout import AREA_FACE as _AREA_FACE
 from .maplayout import (
     DEFAULT_MAX_STATIONS,
+    MapFrame,
     map_frame,
     pass_styles,
     scale_bar_length_m,
@@ -79,8 +82,12 @@ def _font(size_px: int, bold: bool = False) -> ImageFont.FreeTypeFont | ImageFon
     return ImageFont.load_default(size=size_px)  # Pillow's own scalable font
 
 
-#: The text sizes (points) and weights the map is written in (:func:`draw_map`).
-_TEXT_SIZES = ((14.0, True), (13.0, True), (10.0, False), (9.0, False), (8.0, False))
+#: The text sizes (points) and weights the map is written in (:func:`draw_map`), by the resolution
+#: they are drawn at: the margins' at the PNG's, the map box's and the legend's supersampled.
+_TEXT_SIZES = {
+    1: ((14.0, True), (10.0, False), (8.0, False)),
+    _SUPERSAMPLE: ((13.0, True), (9.0, False), (8.0, False)),
+}
 
 
 def prepare(dpi: int = 130) -> None:
@@ -88,10 +95,10 @@ def prepare(dpi: int = 130) -> None:
     file formats (``Image.preinit``: PNG among them) and the fonts of a map of ``dpi``. For a
     helper that gets ready while the plan is still being made (planner.aside)."""
     Image.preinit()
-    px_per_pt = dpi * _SUPERSAMPLE / 72.0
-    for size_pt, bold in _TEXT_SIZES:
-        _font(round(size_pt * px_per_pt), bold)
-    _font(round(10.0 * px_per_pt))  # the y axis label's (its own cache entry)
+    for supersample, sizes in _TEXT_SIZES.items():
+        for size_pt, bold in sizes:
+            _font(round(size_pt * dpi * supersample / 72.0), bold)
+    _font(round(10.0 * dpi / 72.0))  # the y axis label's (its own cache entry)
 
 
 def _nice_ticks(low: float, high: float, max_ticks: int = 9) -> list[float]:
@@ -114,25 +121,54 @@ def _tick_label(value: float) -> str:
     return "0" if text in ("-0", "0") else text
 
 
-class _Page:
-    """A white page of the map's size at the supersampled resolution, with its map transform."""
+def _page_size(frame: MapFrame, dpi: int, supersample: int) -> tuple[int, int]:
+    """The page's pixels at ``supersample`` (1 or :data:`_SUPERSAMPLE`): at 1, the supersampled
+    page's reduced (its odd last row or column kept)."""
+    width, height = round(frame.fig_w_in * dpi * _SUPERSAMPLE), round(frame.fig_h_in * dpi * _SUPERSAMPLE)
+    if supersample == _SUPERSAMPLE:
+        return width, height
+    return -(-width // _SUPERSAMPLE), -(-height // _SUPERSAMPLE)
 
-    def __init__(self, plan: MapPlan, dpi: int) -> None:
-        self.frame = map_frame(plan)
-        self.px_per_in = dpi * _SUPERSAMPLE
+
+def _supersampled(
+    left: float, top: float, right: float, bottom: float
+) -> tuple[tuple[int, int], tuple[int, int, int, int]]:
+    """A region of the page (PNG pixels) widened to whole pixels: its corner on the page, and the
+    region of a supersampled canvas that reduces onto it pixel for pixel."""
+    x0, y0, x1, y1 = math.floor(left), math.floor(top), math.ceil(right), math.ceil(bottom)
+    k = _SUPERSAMPLE
+    return (x0, y0), (k * x0, k * y0, k * x1, k * y1)
+
+
+class _Page:
+    """A white canvas of the map's page with its map transform: the whole page, or a region of it
+    (``region``: left, top, right and bottom, in this canvas's pixels from the page's corner), at
+    ``supersample`` times the PNG's resolution. Coordinates on it (``left``, ``top``, :meth:`xy`)
+    are the canvas's own."""
+
+    def __init__(
+        self, frame: MapFrame, dpi: int, supersample: int, region: tuple[int, int, int, int] | None = None
+    ) -> None:
+        self.frame, self.dpi = frame, dpi
+        self.px_per_in = dpi * supersample
         self.px_per_pt = self.px_per_in / 72.0
-        f = self.frame
-        self.width = round(f.fig_w_in * self.px_per_in)
-        self.height = round(f.fig_h_in * self.px_per_in)
+        f = frame
+        x_at, y_at, right, bottom = region if region is not None else (0, 0, *_page_size(f, dpi, supersample))
+        self.width, self.height = right - x_at, bottom - y_at
         self.image = Image.new("RGB", (self.width, self.height), "white")
         self.draw = ImageDraw.Draw(self.image)
-        self.left = f.left_in * self.px_per_in
-        self.top = f.top_in * self.px_per_in
+        self.left = f.left_in * self.px_per_in - x_at
+        self.top = f.top_in * self.px_per_in - y_at
         self.map_w = f.map_w_in * self.px_per_in
         self.map_h = f.map_h_in * self.px_per_in
         x0, x1, _y0, y1 = f.limits
         self.x0, self.y1 = x0, y1
         self.scale = self.map_w / (x1 - x0)  # px per metre, equal in x and y
+
+    @property
+    def box(self) -> tuple[float, float, float, float]:
+        """The map box: left, top, right, bottom."""
+        return (self.left, self.top, self.left + self.map_w, self.top + self.map_h)
 
     def pt(self, points: float) -> float:
         return points * self.px_per_pt
@@ -269,16 +305,36 @@ def _dashed(points: np.ndarray, on_px: float, off_px: float) -> list[list[tuple[
     ]
 
 
-def _legend(page: _Page, entries: Sequence[tuple[str, dict[str, Any]]]) -> None:
-    """Legend to the right of the map box: a handle (patch, line or marker) and its label."""
-    x = page.left + page.map_w + page.pt(0.01 * page.frame.fig_w_in * 72) + page.pt(8)
+def _legend_height_pt(labels: Sequence[str], size_pt: float, gap_pt: float) -> float:
+    """The legend's height (points) from its top: its rows of text, their gaps, and room below the
+    last line for its descenders."""
+    return 4 + sum(size_pt * 1.2 * (label.count("\n") + 1) + gap_pt for label in labels) + size_pt
+
+
+def _legend(sheet: _Page, entries: Sequence[tuple[str, dict[str, Any]]]) -> None:
+    """Legend to the right of the map box: a handle (patch, line or marker) and its label, drawn
+    supersampled on a canvas of its own (its markers anti-aliased) and reduced onto ``sheet``."""
+    size_pt, gap_pt = 8.0, 5.0
+    # wrapped to the legend's width (3.4 in of page: about 44 characters at 8 pt)
+    rows = [
+        ("\n".join(textwrap.fill(line, 44, subsequent_indent="  ") for line in label.split("\n")), style)
+        for label, style in entries
+    ]
+    height_pt = _legend_height_pt([label for label, _ in rows], size_pt, gap_pt)
+    f = sheet.frame
+    start_in = f.left_in + f.map_w_in + 0.01 * f.fig_w_in
+    corner, region = _supersampled(
+        start_in * sheet.dpi,
+        f.top_in * sheet.dpi,
+        sheet.width,
+        min(sheet.height, (f.top_in + height_pt / 72) * sheet.dpi),
+    )
+    page = _Page(f, sheet.dpi, _SUPERSAMPLE, region)
+    x = page.left + page.map_w + page.pt(0.01 * f.fig_w_in * 72) + page.pt(8)
     y = page.top + page.pt(4)
-    size_pt = 8.0
     line_h = page.pt(size_pt * 1.2)
     handle_w = page.pt(20)
-    for label, style in entries:
-        # wrapped to the legend's width (3.4 in of page: about 44 characters at 8 pt)
-        label = "\n".join(textwrap.fill(line, 44, subsequent_indent="  ") for line in label.split("\n"))
+    for label, style in rows:
         centre_y = y + line_h / 2
         kind = style["kind"]
         if kind == "patch":
@@ -316,7 +372,34 @@ def _legend(page: _Page, entries: Sequence[tuple[str, dict[str, Any]]]) -> None:
                 style.get("mew", 0.5),
             )
         page.text((x + handle_w + page.pt(8), y), label, size_pt)
-        y += line_h * (label.count("\n") + 1) + page.pt(5)
+        y += line_h * (label.count("\n") + 1) + page.pt(gap_pt)
+    sheet.image.paste(page.image.reduce(_SUPERSAMPLE), corner)
+
+
+def _axes(page: _Page, xticks: Sequence[float], yticks: Sequence[float]) -> None:
+    """The map box's frame, its ticks and their labels (metres), and the axes' names."""
+    box = page.box
+    page.draw.rectangle(box, outline="#000000", width=max(1, round(page.pt(0.8))))
+    tick_len, tick_w = page.pt(3.5), max(1, round(page.pt(0.8)))
+    for t in xticks:
+        px = float(page.xy(t, 0.0)[0])
+        page.draw.line([(px, box[3]), (px, box[3] + tick_len)], fill="#000000", width=tick_w)
+        page.text((px, box[3] + tick_len + page.pt(2)), _tick_label(t), 10, anchor="ma")
+    for t in yticks:
+        py = float(page.xy(0.0, t)[1])
+        page.draw.line([(box[0] - tick_len, py), (box[0], py)], fill="#000000", width=tick_w)
+        page.text((box[0] - tick_len - page.pt(2), py), _tick_label(t), 10, anchor="rm")
+    page.text(((box[0] + box[2]) / 2, box[3] + page.pt(20)), "metres east of home (grid)", 10, anchor="ma")
+    ylabel = "metres north of home (grid)"
+    font = _font(round(page.pt(10)))
+    label_box = font.getbbox(ylabel)
+    label = Image.new("L", (int(label_box[2]) + 4, int(page.pt(14))), 0)
+    ImageDraw.Draw(label).text((2, 0), ylabel, font=font, fill=255)
+    label = label.rotate(90, expand=True)
+    widest = max((font.getbbox(_tick_label(t))[2] for t in yticks), default=0)
+    lx = int(box[0] - tick_len - page.pt(6) - widest - label.width)
+    ly = int((box[1] + box[3]) / 2 - label.height / 2)
+    page.image.paste("#000000", (lx, ly), mask=label)
 
 
 _SORTIE_EDGE = "#37474f"
@@ -359,8 +442,8 @@ def draw_map(plan: MapPlan, *, max_footprints: int, max_stations: int, dpi: int)
 
 @dataclass
 class MapBody:
-    """A map drawn but for its header, caption and legend (:func:`draw_body`): the supersampled
-    page, the plan's name (the title) and the legend's entries."""
+    """A map drawn but for its header, caption and legend (:func:`draw_body`): the page (at the
+    PNG's size), the plan's name (the title) and the legend's entries."""
 
     page: _Page | None  # None once finished
     name: str
@@ -381,8 +464,16 @@ def draw_body(
     (else left out, and the legend says so and where they are), each pass group in its colour
     (heights of a multi-scale block and oblique look directions apart), and the plan's sorties
     (numbered from 1) as outlines with their numbers."""
-    page = _Page(plan, dpi)
-    frame = page.frame
+    frame = map_frame(plan)
+    # The map box, supersampled (anti-aliasing: reduced onto the page below); the margins are
+    # drawn at the page's own size (the legend supersampled on its own canvas: _legend).
+    corner, region = _supersampled(
+        frame.left_in * dpi,
+        frame.top_in * dpi,
+        (frame.left_in + frame.map_w_in) * dpi,
+        (frame.top_in + frame.map_h_in) * dpi,
+    )
+    page = _Page(frame, dpi, _SUPERSAMPLE, region)
     ox, oy = plan.home_xy_m
     st = plan.stations
     n = len(st)
@@ -517,33 +608,6 @@ def draw_body(
             )
         )
 
-    # what lies outside the map box is cut away, then the frame, ticks and labels
-    page.draw.rectangle((0, 0, page.width, box[1] - 1), fill="white")
-    page.draw.rectangle((0, box[3] + 1, page.width, page.height), fill="white")
-    page.draw.rectangle((0, 0, box[0] - 1, page.height), fill="white")
-    page.draw.rectangle((box[2] + 1, 0, page.width, page.height), fill="white")
-    page.draw.rectangle(box, outline="#000000", width=max(1, round(page.pt(0.8))))
-    tick_len, tick_w = page.pt(3.5), max(1, round(page.pt(0.8)))
-    for t in xticks:
-        px = float(page.xy(t, 0.0)[0])
-        page.draw.line([(px, box[3]), (px, box[3] + tick_len)], fill="#000000", width=tick_w)
-        page.text((px, box[3] + tick_len + page.pt(2)), _tick_label(t), 10, anchor="ma")
-    for t in yticks:
-        py = float(page.xy(0.0, t)[1])
-        page.draw.line([(box[0] - tick_len, py), (box[0], py)], fill="#000000", width=tick_w)
-        page.text((box[0] - tick_len - page.pt(2), py), _tick_label(t), 10, anchor="rm")
-    page.text(((box[0] + box[2]) / 2, box[3] + page.pt(20)), "metres east of home (grid)", 10, anchor="ma")
-    ylabel = "metres north of home (grid)"
-    font = _font(round(page.pt(10)))
-    label_box = font.getbbox(ylabel)
-    label = Image.new("L", (int(label_box[2]) + 4, int(page.pt(14))), 0)
-    ImageDraw.Draw(label).text((2, 0), ylabel, font=font, fill=255)
-    label = label.rotate(90, expand=True)
-    widest = max((font.getbbox(_tick_label(t))[2] for t in yticks), default=0)
-    lx = int(box[0] - tick_len - page.pt(6) - widest - label.width)
-    ly = int((box[1] + box[3]) / 2 - label.height / 2)
-    page.image.paste("#000000", (lx, ly), mask=label)
-
     # scale bar (lower right) and north arrow (upper right), inside the map box
     length_m = scale_bar_length_m(x1 - x0)
     unit = (y1 - y0) / 100.0
@@ -576,23 +640,36 @@ def draw_body(
     page.arrow((nx, box[1] + 0.16 * page.map_h), (nx, box[1] + 0.04 * page.map_h), "#000000", 2.0, 11)
     page.text((nx, box[1] + 0.16 * page.map_h), "N", 13, anchor="ma", bold=True)
 
+    # what lies outside the map box is cut away (the canvas's edges, up to a pixel wide), then
+    # the box is reduced onto the page, and its frame, ticks and labels drawn there
+    for edge in (
+        (0, 0, page.width, box[1] - 1),
+        (0, box[3] + 1, page.width, page.height),
+        (0, 0, box[0] - 1, page.height),
+        (box[2] + 1, 0, page.width, page.height),
+    ):
+        if edge[2] >= edge[0] and edge[3] >= edge[1]:
+            page.draw.rectangle(edge, fill="white")
+    sheet = _Page(frame, dpi, 1)
+    sheet.image.paste(page.image.reduce(_SUPERSAMPLE), corner)
+    _axes(sheet, xticks, yticks)
+
     for note in simplified:
         entries.append((note, {"kind": "note"}))
-    return MapBody(page=page, name=plan.name, entries=entries)
+    return MapBody(page=sheet, name=plan.name, entries=entries)
 
 
 def finish(body: MapBody, header: str, caption: str) -> Image.Image:
-    """The map ``body`` with its title, ``header``, ``caption`` and legend, reduced to its size:
-    the RGB image. The body is finished once: its supersampled page (29 MB or more) is let go
-    here, to be freed before the map is encoded."""
+    """The map ``body`` with its title, ``header``, ``caption`` and legend: the RGB image. The body
+    is finished once: its page is the image returned."""
     page, body.page = body.page, None
     if page is None:
         raise ValueError("this map was finished already")
+    _legend(page, body.entries)
     page.text((page.left, page.pt(0.2 * 72)), body.name, 14, bold=True)
     page.text((page.left, page.pt(0.58 * 72)), header, 10)
     page.text((page.left, page.height - page.pt(0.15 * 72)), caption, 8, anchor="ld", fill="#424242")
-    _legend(page, body.entries)
-    return page.image.reduce(_SUPERSAMPLE)
+    return page.image
 
 
 def png_bytes(

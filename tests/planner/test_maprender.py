@@ -1,13 +1,17 @@
-"""map.png's area fill (planner.maprender._fill_polygon) against Pillow's own blended paste
-through an "L" mask, pixel for pixel: the fill copies the colour through a "1" mask, which must
-give the same pixels because a polygon mask is only ever 0 or 255 (checked too)."""
+"""map.png's drawing (planner.maprender), pixel for pixel: the area fill against Pillow's own
+blended paste through an "L" mask (the fill copies the colour through a "1" mask, which must
+give the same pixels because a polygon mask is only ever 0 or 255, checked too); the legend, on
+its own supersampled canvas of the height it needs, against the same drawn on a canvas down to
+the page's bottom."""
 
 from __future__ import annotations
 
 import math
+from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from PIL import Image, ImageDraw
@@ -63,3 +67,19 @@ def test_area_fill_is_the_blended_paste_through_an_l_mask(
     expected.paste(colour, (left, top, right, bottom), mask=mask)
     assert set(mask.tobytes()) <= {0, 255}
     assert page.image.tobytes() == expected.tobytes()
+
+
+@pytest.mark.parametrize("spec", ["quarry-block-sorties.toml", "field-concave.toml"])
+def test_the_legends_canvas_holds_all_of_it(spec: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The legend (the sorties' block: twelve entries, notes wrapped over lines) drawn on a canvas
+    of the height it computes is the same picture as drawn on one reaching the page's bottom:
+    nothing of it is cut."""
+    import planner.maprender as maprender
+    from planner.mapview import map_view
+    from planner.plan_run import plan_spec
+
+    run = plan_spec(Path(__file__).resolve().parents[2] / "missions" / spec)
+    view = map_view(run.plan, [s.plan for s in run.sorties])
+    fitted = maprender.png_bytes(view)
+    monkeypatch.setattr(maprender, "_legend_height_pt", lambda *args: 1e6)
+    assert maprender.png_bytes(view) == fitted

@@ -62,7 +62,7 @@ def _large_advised_mappings() -> int:
 
 
 def allocate_a_map_page(path: str) -> None:
-    """A page as large as a map's supersampled one (Pillow, 29 MB), and whether the kernel was
+    """A page as large as a whole map page supersampled (Pillow, 29 MB), and whether the kernel was
     advised to back it with huge pages: the advised mappings before and while it exists."""
     from PIL import Image
 
