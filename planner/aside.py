@@ -284,8 +284,13 @@ class Helper:
             self.close()
             return None
         assert self._job_fd is not None and self.pid is not None
+        try:
+            _write_all(self._job_fd, len(data).to_bytes(_LENGTH, "little") + data)
+        except OSError as error:  # the helper is gone (it died warming up): do without it
+            log.debug("%s: no helper to take it (%s)", what, error)
+            self.close()
+            return None
         job_fd, self._job_fd = self._job_fd, None
-        _write_all(job_fd, len(data).to_bytes(_LENGTH, "little") + data)
         aside = Aside(what, self.pid, self._report_fd, None)
         self.pid = self._report_fd = None
         if more:

@@ -269,6 +269,32 @@ def test_a_job_the_helper_cannot_import_is_forked_instead(tmp_path: Path) -> Non
 
 
 @needs_spawn
+@needs_fork
+def test_a_helper_that_died_is_done_without(tmp_path: Path) -> None:
+    """The helper killed before its job came: the job runs in a fork all the same, no error."""
+    result = run(
+        """
+        out = sys.argv[1] + "/job.json"
+        helper = Helper(warm=WARM)
+        dead = helper.pid
+        os.kill(dead, signal.SIGKILL)
+        time.sleep(0.2)
+        helper.submit(record, out, what="job.json").wait()
+        gone = False
+        try:
+            os.waitpid(dead, os.WNOHANG)
+        except ChildProcessError:  # reaped
+            gone = True
+        print(json.dumps({"me": os.getpid(), "dead": dead, "gone": gone, **json.load(open(out))}))
+        """,
+        tmp_path,
+    )
+    assert result["pid"] not in (result["me"], result["dead"])
+    assert result["ppid"] == result["me"]
+    assert result["gone"] is True
+
+
+@needs_spawn
 def test_a_started_job_runs_its_first_part_before_it_is_sent_its_value(tmp_path: Path) -> None:
     result = run(
         """
