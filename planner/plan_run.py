@@ -105,8 +105,9 @@ def plan_spec(
     order) or ``resume_record`` (the folder sfap monitor recorded, or its triggers.csv: after
     the last station it reached) only what is left. Sorties when the spec's vehicle has an
     endurance. A block estimated beyond ``max_photos`` photos is refused at once (planner.estimate);
-    ``announce(estimate)`` is called first, before the planning itself; ``stage(what)`` at each
-    step of the planning (progress). With a ``helper`` (a :class:`planner.aside.Helper` warmed
+    ``announce(estimate)`` is given the block's estimate before its lines are laid out
+    (planner.survey.plan_polygons: not for a corridor); ``stage(what)`` at each step of the
+    planning (progress). With a ``helper`` (a :class:`planner.aside.Helper` warmed
     with :func:`planner.maprender.prepare`), map.png is begun there as soon as the mission is
     built (planner.survey.plan_polygons: ``on_built``), while the summary is made, unless the
     plan is resumed, cut into sorties or a corridor: :meth:`PlanRun.write` finishes it."""
@@ -117,12 +118,6 @@ def plan_spec(
     if resume_from is not None and resume_record is not None:
         raise InputError("give --resume-from or --resume-record, not both")
     spec = load_spec(Path(spec_file))
-    if announce is not None:
-        from .survey import estimate_survey
-
-        guess = estimate_survey(spec)
-        if guess is not None:
-            announce(guess)
     map_begun: Aside | None = None
 
     def begin_map(view: MapPlan) -> None:
@@ -139,6 +134,7 @@ def plan_spec(
             max_photos=max_photos,
             stage=stage,
             on_built=begin_map if helper is not None and whole else None,
+            announce=announce,
         )
     except BaseException:
         if map_begun is not None:

@@ -61,11 +61,13 @@ def plan_survey(
     max_photos: int | None = MAX_PHOTOS,
     stage: Callable[[str], None] | None = None,
     on_built: Callable[[MapPlan], None] | None = None,
+    announce: Callable[[PlanEstimate], None] | None = None,
 ) -> SurveyPlan:
     """Plan the survey a spec describes. Raises SfapError subclasses with the fix; a block
     estimated at more than ``max_photos`` photos is refused at once (planner.estimate; None: no
     limit). ``stage(what)`` is told each step of a block's planning as it starts (progress).
-    ``on_built(view)``: see :func:`plan_polygons` (a corridor does not call it)."""
+    ``on_built(view)`` and ``announce(estimate)``: see :func:`plan_polygons` (a corridor calls
+    neither)."""
     survey = spec.survey
     vehicle = spec.vehicle
     if vehicle.type is VehicleType.FIXED_WING and survey.trigger is TriggerMode.HOVER:
@@ -80,7 +82,9 @@ def plan_survey(
         return plan_corridor(spec)
     polygons = load_polygons(spec.area_path)
     exclusions = [p for path in spec.exclude_paths for p in load_polygons(path)]
-    return plan_polygons(spec, polygons, exclusions, max_photos=max_photos, stage=stage, on_built=on_built)
+    return plan_polygons(
+        spec, polygons, exclusions, max_photos=max_photos, stage=stage, on_built=on_built, announce=announce
+    )
 
 
 def estimate_survey(spec: MissionSpec) -> PlanEstimate | None:
@@ -143,9 +147,12 @@ def plan_polygons(
     max_photos: int | None = MAX_PHOTOS,
     stage: Callable[[str], None] | None = None,
     on_built: Callable[[MapPlan], None] | None = None,
+    announce: Callable[[PlanEstimate], None] | None = None,
 ) -> SurveyPlan:
     """Plan over polygons already loaded (lon/lat degrees); :func:`plan_survey` reads them from
-    the spec's files. ``on_built(view)`` is given the map's view of the plan
+    the spec's files. ``announce(estimate)`` is given the block's estimate (planner.estimate,
+    the same as :func:`estimate_survey`'s) before its lines are laid out, and before a block
+    beyond ``max_photos`` is refused. ``on_built(view)`` is given the map's view of the plan
     (:func:`planner.mapview.map_geometry`: its header and caption still empty) as soon as the
     mission is built, before the coverage figures and the summary are made: `sfap plan` starts
     drawing map.png with it."""
@@ -166,6 +173,8 @@ def plan_polygons(
     pass_defs = _all_pass_defs(spec, site)
     guess = estimate(spec, area_xy, _pass_geometry(spec, pass_defs, alt_agl_m))
     log.info("estimate: %s", guess.text())
+    if announce is not None:
+        announce(guess)
     refusal = too_large(spec, guess, max_photos) if max_photos is not None else None
     if refusal is not None:
         raise SpecError(refusal)

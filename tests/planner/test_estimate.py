@@ -113,3 +113,24 @@ def test_a_long_plan_shows_its_estimate_and_steps_on_stderr(
     quiet = CliRunner().invoke(cli, ["plan", str(MISSIONS / "bardenas-gully.toml"), "-o", str(tmp_path / "q"),
                                      "--no-progress"])  # fmt: skip
     assert quiet.exit_code == 0 and "planning about" not in quiet.stderr
+
+
+@pytest.mark.parametrize("spec", ["bardenas-gully.toml", "quarry-block.toml", "bardenas-gully-terrain.toml"])
+def test_the_plan_announces_the_estimate_once_before_laying_out_its_lines(spec: str) -> None:
+    """plan_spec's ``announce`` is given, once and before the first step of the layout, the
+    estimate :func:`estimate_survey` makes on its own from the spec."""
+    from planner.plan_run import plan_spec
+
+    events: list[object] = []
+    plan_spec(MISSIONS / spec, announce=events.append, stage=events.append)
+    assert events[0] == estimate_survey(load_spec(MISSIONS / spec))
+    assert sum(not isinstance(e, str) for e in events) == 1
+    assert any(isinstance(e, str) and e.startswith("laying out the lines") for e in events[1:])
+
+
+def test_a_corridor_is_not_announced() -> None:
+    from planner.plan_run import plan_spec
+
+    events: list[object] = []
+    plan_spec(MISSIONS / "bardenas-stream-corridor.toml", announce=events.append)
+    assert events == [] and estimate_survey(load_spec(MISSIONS / "bardenas-stream-corridor.toml")) is None
