@@ -28,8 +28,9 @@ import functools
 import itertools
 import logging
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import shapely
@@ -45,12 +46,14 @@ from .estimate import PassGeometry, PlanEstimate, estimate, too_large
 from .footprint import near_far_gsd_cm, tilted_gsd_cm
 from .kinds import PassKind
 from .limits import MAX_PHOTOS
-from .lines import Segment, layout_pass
-from .mapview import MapPlan, map_geometry
+from .lines import layout_pass
 from .mission import VehicleType
 from .mission_builder import BuiltMission, PassPlan
 from .plan import FlightPass, PlanLayout, SurveyPlan
 from .spec import MissionSpec, TriggerMode
+
+if TYPE_CHECKING:  # the map's view is made only for a caller who asks (on_built)
+    from .mapview import MapPlan
 
 log = logging.getLogger(__name__)
 
@@ -189,7 +192,7 @@ def plan_polygons(
     def attempt(scale: float) -> _Attempt:
         del warnings[:]
         step(f"laying out the lines of {len(pass_defs)} pass{'es' if len(pass_defs) != 1 else ''}")
-        pass_plans, first_views, speed_m_s = _lay_out_passes(
+        pass_plans, count_views, speed_m_s = _lay_out_passes(
             spec, pass_defs, area_xy, blocked_xy, alt_agl_m, gsd_cm, scale, warnings
         )
         # 4-5. route, mission and stations --------------------------------------------------------
@@ -197,9 +200,7 @@ def plan_polygons(
         built = steps.build(
             spec, site, home, home_xy, alt_agl_m=alt_agl_m, speed_m_s=speed_m_s, passes=pass_plans
         )
-        return _Attempt(
-            built=built, terrain_passes=pass_plans, first_pass_views=first_views, speed_m_s=speed_m_s
-        )
+        return _Attempt(built=built, terrain_passes=pass_plans, count_views=count_views, speed_m_s=speed_m_s)
 
     laid, fit = steps.fit_to_terrain(
         spec, site, home, home_xy, alt_agl_m=alt_agl_m, dem=dem, attempt=attempt, warnings=warnings
@@ -226,6 +227,8 @@ def plan_polygons(
         for p in pass_plans
     )
     if on_built is not None:
+        from .mapview import map_geometry
+
         on_built(
             map_geometry(
                 name=spec.name,
@@ -269,30 +272,14 @@ class _Attempt:
 
     built: BuiltMission
     terrain_passes: list[PassPlan]
-    first_pass_views: _FirstPassViews
+    count_views: Callable[[], ViewShares]  # the first pass's (planner.coverage.view_shares)
     speed_m_s: float
 
     @functools.cached_property
     def views(self) -> ViewShares:
         """The first pass's coverage figures, counted when first asked for: after the mission
         is built (the map is started first), and only for the attempt kept."""
-        return self.first_pass_views.count()
-
-
-@dataclass(frozen=True)
-class _FirstPassViews:
-    """What the first pass's coverage figures are counted from (planner.coverage.view_shares)."""
-
-    area_uv: Polygon | MultiPolygon
-    segments: Sequence[Segment]
-    rect: ex.FrameRectangle
-    trigger_distance_m: float
-    line_spacing_m: float
-
-    def count(self) -> ViewShares:
-        return view_shares(
-            self.area_uv, self.segments, self.rect, self.trigger_distance_m, self.line_spacing_m
-        )
+        return self.count_views()
 
 
 def _lay_out_passes(
@@ -304,7 +291,7 @@ def _lay_out_passes(
     gsd_cm: float,
     scale: float,
     warnings: list[str],
-) -> tuple[list[PassPlan], _FirstPassViews, float]:
+) -> tuple[list[PassPlan], Callable[[], ViewShares], float]:
     """Lines and stations of every pass, and what the first pass's coverage figures are counted
     from; ``scale`` (<= 1) shrinks the frame rectangle to its size on the highest ground under
     the frames (1 over flat ground)."""
@@ -312,7 +299,7 @@ def _lay_out_passes(
     camera = spec.camera
     speed_m_s = survey.speed_m_s
     pass_plans: list[PassPlan] = []
-    views: _FirstPassViews | None = None
+    views: Callable[[], ViewShares] | None = None
     for index, pdef in enumerate(pass_defs):
         up = (
             pdef.look_heading_deg
@@ -338,7 +325,7 @@ def _lay_out_passes(
                 f"without flying over them"
             )
         if index == 0:
-            views = _FirstPassViews(area_uv, segments, rect, trigger_m, spacing_m)
+            views = functools.partial(view_shares, area_uv, segments, rect, trigger_m, spacing_m)
         near_gsd, far_gsd = near_far_gsd_cm(camera, pass_alt_m, pdef.tilt_deg)
         pass_plans.append(
             PassPlan(
