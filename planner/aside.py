@@ -198,8 +198,10 @@ _HELPER_CODE = (
 
 def can_spawn() -> bool:
     """True when a helper interpreter can be started beside this one and run on its own core:
-    posix_spawn exists, this interpreter's path is known, and more than one core is available."""
-    if not hasattr(os, "posix_spawn") or not sys.executable:
+    posix_spawn exists, this interpreter's path is known and is Python's own (not a frozen
+    application's, which would read ``-c`` as its own option), and more than one core is
+    available."""
+    if not hasattr(os, "posix_spawn") or not sys.executable or getattr(sys, "frozen", False):
         return False
     try:
         cores = len(os.sched_getaffinity(0))

@@ -452,3 +452,14 @@ def test_can_fork_refuses_with_threads() -> None:
     finally:
         stop.set()
         thread.join()
+
+
+def test_a_frozen_application_starts_no_helper(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A frozen application's executable is not Python's: it would read the helper's ``-c`` as an
+    option of its own."""
+    from planner.aside import can_spawn
+
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0, 1}, raising=False)
+    assert can_spawn() is hasattr(os, "posix_spawn")
+    monkeypatch.setattr(sys, "frozen", True, raising=False)
+    assert can_spawn() is False
