@@ -97,6 +97,20 @@ def _stations_below(
         k += too_low
 
 
+def splitmix64_uniform(count: int) -> NDArray[np.float64]:
+    """The first ``count`` outputs of SplitMix64 from seed 0 (Steele, Lea and Flood 2014, with
+    Vigna's constants, as in his splitmix64.c), as doubles in [0, 1) (their top 53 bits).
+
+    Output k (from 1) is a fixed mix of ``k`` times the golden ratio's 64-bit constant, so the
+    whole run is a few operations on an array; numpy.random would give numbers as good, but it
+    costs about 10 ms to import, a twentieth of a small plan's whole process."""
+    z = np.arange(1, count + 1, dtype=np.uint64) * np.uint64(0x9E3779B97F4A7C15)
+    z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+    z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+    z ^= z >> np.uint64(31)
+    return (z >> np.uint64(11)).astype(np.float64) * 2.0**-53
+
+
 def grid_points(area_uv: Polygon | MultiPolygon, cell_m: float) -> tuple[NDArray[np.float64], float]:
     """One point in each cell of a regular grid, those inside the area (cell enlarged if needed
     to keep to about a million points)."""
@@ -109,7 +123,7 @@ def grid_points(area_uv: Polygon | MultiPolygon, cell_m: float) -> tuple[NDArray
     gu, gv = np.meshgrid(us, vs)
     # One point at random in each cell (a fixed seed: the same plan gives the same figures), so
     # that the regular pattern of the frames cannot alias with the grid.
-    jitter = np.random.default_rng(0).uniform(-0.5, 0.5, (2, gu.size)) * cell_m
+    jitter = (splitmix64_uniform(2 * gu.size).reshape(2, gu.size) - 0.5) * cell_m
     gu, gv = gu.ravel() + jitter[0], gv.ravel() + jitter[1]
     inside = shapely.contains_xy(area_uv, gu, gv)
     return np.column_stack([gu[inside], gv[inside]]), cell_m
