@@ -17,14 +17,20 @@ its error (pickled through a pipe) or its success.
 not a fork) that imports and loads what the job will need (``warm``, named: Pillow, its PNG
 writer and the map's fonts, 25-30 ms of a small plan) while this process is still planning, then
 waits for the job (a module-level function and its arguments, pickled through a pipe: a small
-plan in about a millisecond) and runs it at once. Spawned rather than forked for two reasons:
+plan in about a millisecond) and runs it at once. While it waits it faults in the memory the job
+will use (``room``: the map's canvases, 30-40 MB), a few MiB at a time, and stops as soon as the
+job comes. Spawned rather than forked for two reasons:
 
-- glibc reads its tunables only when a process starts, and the helper is started asking for
-  transparent huge pages (``glibc.malloc.hugetlb=1``: glibc 2.35 and later advise the kernel to
-  back large allocations with large pages where it allows that on request). The map's
-  supersampled page, 29 MB when it was the whole page, took 7,100 page faults in 4 KiB pages, a
-  third of the map's time on a virtual machine; with the advice, about 1,000 (BENCHMARKS.md).
-  Where the kernel or the C library does not take the advice, nothing changes.
+- glibc reads its tunables only when a process starts, and the helper is started asking malloc to
+  serve allocations up to 32 MiB from its heap and to keep what is freed
+  (``glibc.malloc.mmap_threshold``, ``glibc.malloc.trim_threshold``): the memory faulted in
+  while waiting, freed, is what the job's allocations get, and one canvas's memory is the next
+  one's. A first touch of memory costs about 1 ms a MB on a virtual machine whose host takes back
+  the pages its guest frees (free page reporting); the map's body took 8,000 page faults and
+  12-29 ms of system time in its 40-55 ms, none with the room (BENCHMARKS.md). An earlier helper
+  asked for transparent huge pages instead (``glibc.malloc.hugetlb=1``): fewer faults on a quiet
+  host, but on such a guest every huge page is memory the host took back, and half the maps took
+  90-200 ms of system time.
 - a spawned child shares no page with this one, and is safe with other threads running.
 """
 
@@ -185,14 +191,15 @@ def _report_and_exit(write_fd: int, run: Callable[[], object]) -> NoReturn:
         os._exit(status)
 
 
-#: Asked of glibc in the helper (see the module's text): huge pages for its large allocations.
-HUGE_PAGES_TUNABLE = "glibc.malloc.hugetlb=1"
+#: Asked of glibc in the helper (see the module's text): allocations up to 32 MiB (glibc's
+#: largest threshold) from the heap, and what is freed kept there up to 256 MiB.
+KEEP_MEMORY_TUNABLES = {"glibc.malloc.mmap_threshold": "33554432", "glibc.malloc.trim_threshold": "268435456"}
 
 #: The helper's program: the parent's import path, then serve (the arguments: the job's pipe, the
-#: report's pipe, the warm-up's name, then the path).
+#: report's pipe, the warm-up's name, the room's bytes, then the path).
 _HELPER_CODE = (
-    "import sys; sys.path[:] = sys.argv[4:]; from planner.aside import _serve_spawned; "
-    "_serve_spawned(int(sys.argv[1]), int(sys.argv[2]), sys.argv[3])"
+    "import sys; sys.path[:] = sys.argv[5:]; from planner.aside import _serve_spawned; "
+    "_serve_spawned(int(sys.argv[1]), int(sys.argv[2]), sys.argv[3], int(sys.argv[4]))"
 )
 
 
@@ -211,22 +218,24 @@ def can_spawn() -> bool:
 
 
 def helper_environment() -> dict[str, str]:
-    """The helper's environment: this one's, with huge pages asked of glibc (GLIBC_TUNABLES)
-    unless the user's own tunables already say."""
+    """The helper's environment: this one's, with malloc asked to keep its memory
+    (:data:`KEEP_MEMORY_TUNABLES`, GLIBC_TUNABLES) where the user's own tunables do not say."""
     env = dict(os.environ)
-    tunables = env.get("GLIBC_TUNABLES", "")
-    if "glibc.malloc.hugetlb=" not in tunables:
-        env["GLIBC_TUNABLES"] = f"{tunables}:{HUGE_PAGES_TUNABLE}" if tunables else HUGE_PAGES_TUNABLE
+    tunables = [t for t in env.get("GLIBC_TUNABLES", "").split(":") if t]
+    named = {t.split("=", 1)[0] for t in tunables}
+    tunables += [f"{name}={value}" for name, value in KEEP_MEMORY_TUNABLES.items() if name not in named]
+    env["GLIBC_TUNABLES"] = ":".join(tunables)
     return env
 
 
 class Helper:
     """A child interpreter started now (:func:`can_spawn`) that runs ``warm`` at once (a function
-    named ``"module:function"``), then one job sent later by :meth:`submit`; where none can be
-    started, nothing is, and the job runs when submitted (:func:`start_aside`). :meth:`close` when
-    no job will come (always safe)."""
+    named ``"module:function"``), faults in up to ``room`` bytes of memory for the job while it
+    waits for it (glibc only: elsewhere malloc would give the memory back), then runs one job
+    sent later by :meth:`submit`; where none can be started, nothing is, and the job runs when
+    submitted (:func:`start_aside`). :meth:`close` when no job will come (always safe)."""
 
-    def __init__(self, warm: str | None = None) -> None:
+    def __init__(self, warm: str | None = None, room: int = 0) -> None:
         self.pid: int | None = None
         self._job_fd: int | None = None
         self._report_fd: int | None = None
@@ -236,7 +245,7 @@ class Helper:
         job_read, job_write = os.pipe()
         report_read, report_write = os.pipe()
         _widen(job_write)
-        argv = [sys.executable, "-c", _HELPER_CODE, str(job_read), str(report_write), warm or "", *sys.path]
+        argv = [sys.executable, "-c", _HELPER_CODE, str(job_read), str(report_write), warm or "", str(room), *sys.path]
         try:
             os.set_inheritable(job_read, True)  # the child's two ends, and only those
             os.set_inheritable(report_write, True)
@@ -329,18 +338,20 @@ def _importable(job: Callable[..., object]) -> bool:
     return module not in (None, "__main__") and "<" not in name and "." not in name
 
 
-def _serve_spawned(job_fd: int, report_fd: int, warm: str) -> NoReturn:
+def _serve_spawned(job_fd: int, report_fd: int, warm: str, room: int) -> NoReturn:
     """The helper interpreter's program (_HELPER_CODE)."""
-    _report_and_exit(report_fd, lambda: _serve(job_fd, warm))
+    _report_and_exit(report_fd, lambda: _serve(job_fd, warm, room))
 
 
-def _serve(job_fd: int, warm: str) -> None:
-    """The helper's life: warm up, read one job (nothing: leave), run it (with ``receive`` when
-    it was started: Helper.start)."""
+def _serve(job_fd: int, warm: str, room: int) -> None:
+    """The helper's life: warm up, fault in its room until the job comes, read one job (nothing:
+    leave), run it (with ``receive`` when it was started: Helper.start)."""
     if warm:
         with contextlib.suppress(Exception):  # only a head start: the job says what fails
             module, name = warm.split(":")
             getattr(importlib.import_module(module), name)()
+    if room > 0 and _glibc():
+        _fault_in(room, job_fd)
     with os.fdopen(job_fd, "rb") as pipe:
         try:
             job, args, more = _read_message(pipe)
@@ -350,6 +361,35 @@ def _serve(job_fd: int, warm: str) -> None:
             job(*args, lambda: _read_message(pipe))
         else:
             job(*args)
+
+
+def _glibc() -> bool:
+    """True when this process's C library is glibc (which reads KEEP_MEMORY_TUNABLES)."""
+    try:
+        return os.confstr("CS_GNU_LIBC_VERSION") is not None
+    except (AttributeError, ValueError, OSError):
+        return False
+
+
+#: The room is faulted in this many bytes at a time, the job's pipe looked at between them.
+_ROOM_STEP = 4 << 20
+
+
+def _fault_in(room: int, job_fd: int) -> None:
+    """Touch every page of up to ``room`` bytes of new memory, :data:`_ROOM_STEP` at a time,
+    until all is touched or something can be read from ``job_fd`` (the job, or the end of the
+    pipe), then free it: malloc keeps it (KEEP_MEMORY_TUNABLES) for the job's allocations."""
+    import select
+
+    page = os.sysconf("SC_PAGESIZE")
+    poller = select.poll()
+    poller.register(job_fd, select.POLLIN)
+    steps: list[bytearray] = []
+    while len(steps) * _ROOM_STEP < room and not poller.poll(0):
+        step = bytearray(_ROOM_STEP)  # calloc: fresh memory is not written to yet
+        step[::page] = bytes(len(range(0, _ROOM_STEP, page)))
+        steps.append(step)
+    del steps
 
 
 def _widen(fd: int) -> None:

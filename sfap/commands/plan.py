@@ -16,6 +16,9 @@ from ..common import dumps_json, echo_table, json_option, overwrite_option, prog
 #: What map.png's helper runs while the plan is being made (planner.aside.Helper's warm-up, by
 #: name): the drawing imported (never the planner), Pillow's formats and the map's fonts loaded.
 MAP_WARM_UP = "planner.maprender:prepare"
+#: Memory map.png's helper faults in while it waits for the plan (planner.aside.Helper): its
+#: canvases, about 26 MB for the gully's map and 36 MB for a square kilometre's, with room to spare.
+MAP_ROOM = 48 << 20
 
 if TYPE_CHECKING:  # the planner is imported once map.png's helper is started (command)
     from planner.estimate import PlanEstimate
@@ -128,12 +131,12 @@ def command(
                 click.echo(f"  {time.monotonic() - started:6.1f} s  {what}", err=True)
 
         # map.png's helper, a second interpreter started first thing (planner.aside: spawned,
-        # asking glibc for huge pages), imports the drawing and gets Pillow and the fonts ready on
-        # the other core while this one imports the planner and plans (the helper never imports
-        # the planner: planner.maprender.prepare); then it draws the map (sent as its view of
-        # the plan, planner.mapview, as soon as the mission is built) while this one makes the
-        # summary and writes the other files.
-        with Helper(warm=MAP_WARM_UP) as helper:
+        # asking glibc to keep its memory), imports the drawing and gets Pillow and the fonts
+        # ready on the other core while this one imports the planner and plans (the helper never
+        # imports the planner: planner.maprender.prepare), and faults in the memory the map will
+        # use; then it draws the map (sent as its view of the plan, planner.mapview, as soon as
+        # the mission is built) while this one makes the summary and writes the other files.
+        with Helper(warm=MAP_WARM_UP, room=MAP_ROOM) as helper:
             from planner.plan_run import plan_spec
 
             run = plan_spec(

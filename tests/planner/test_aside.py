@@ -28,7 +28,7 @@ PRELUDE = textwrap.dedent(
     import json, os, signal, sys, threading, time
     from planner.aside import Helper, can_fork, start_aside
     from planner.errors import InputError
-    from tests.support.aside_jobs import allocate_a_map_page, begin_then_record, die, record, refuse
+    from tests.support.aside_jobs import allocate_canvases, begin_then_record, die, record, refuse, wait_for_rss
 
     def wait_for(path, seconds=30.0):
         end = time.monotonic() + seconds
@@ -85,15 +85,21 @@ def test_helper_runs_the_job_in_its_warmed_child(tmp_path: Path) -> None:
     assert result["pid"] != result["me"]  # another process ran it
     assert result["ppid"] == result["me"]  # a child of this one
     assert result["warmed"] == result["pid"]  # warmed up in the process that ran the job
-    assert result["tunables"] == "glibc.malloc.hugetlb=1"
+    assert result["tunables"] == "glibc.malloc.mmap_threshold=33554432:glibc.malloc.trim_threshold=268435456"
 
 
 @needs_spawn
 @pytest.mark.parametrize(
     ("users", "helpers"),
     [
-        ("glibc.malloc.check=0", "glibc.malloc.check=0:glibc.malloc.hugetlb=1"),
-        ("glibc.malloc.hugetlb=0", "glibc.malloc.hugetlb=0"),  # the user's say stands
+        (
+            "glibc.malloc.check=0",
+            "glibc.malloc.check=0:glibc.malloc.mmap_threshold=33554432:glibc.malloc.trim_threshold=268435456",
+        ),
+        (  # the user's say stands
+            "glibc.malloc.trim_threshold=0",
+            "glibc.malloc.trim_threshold=0:glibc.malloc.mmap_threshold=33554432",
+        ),
     ],
 )
 def test_the_helper_keeps_the_users_own_glibc_tunables(tmp_path: Path, users: str, helpers: str) -> None:
@@ -111,36 +117,53 @@ def test_the_helper_keeps_the_users_own_glibc_tunables(tmp_path: Path, users: st
     assert result["tunables"] == helpers
 
 
-def _glibc_takes_the_huge_page_tunable() -> bool:
-    name, version = platform.libc_ver()
-    return sys.platform == "linux" and name == "glibc" and tuple(map(int, version.split("."))) >= (2, 35)
+def _glibc() -> bool:
+    return sys.platform == "linux" and platform.libc_ver()[0] == "glibc"
 
 
 @needs_spawn
-@pytest.mark.skipif(not _glibc_takes_the_huge_page_tunable(), reason="needs Linux and glibc 2.35 or later")
-@pytest.mark.skipif(
-    not Path("/sys/kernel/mm/transparent_hugepage/enabled").exists()
-    or "[never]" in Path("/sys/kernel/mm/transparent_hugepage/enabled").read_text(),
-    reason="this kernel has transparent huge pages off",
-)
-def test_the_helpers_map_page_is_advised_huge_pages_and_this_process_is_not(tmp_path: Path) -> None:
-    """The kernel's own record (/proc/self/smaps, VmFlags "hg": madvise MADV_HUGEPAGE) of a map
-    page's memory: advised in the helper, not in the process that started it."""
+@pytest.mark.skipif(not _glibc(), reason="the room is kept by glibc's malloc (Linux, glibc)")
+@pytest.mark.parametrize("room_mib", [0, 48])
+def test_the_job_finds_its_memory_already_faulted_in(tmp_path: Path, room_mib: int) -> None:
+    """A helper given a room faults it in while it waits (its resident memory grows by the room,
+    the kernel's count), and a job allocating a map page's canvases (Pillow, 3 x 10 MB, each
+    freed before the next) then takes almost no page fault (getrusage): without a room, a fault
+    for every page of the first canvas at least."""
     result = run(
-        """
-        helper_out, here_out = sys.argv[1] + "/helper.json", sys.argv[1] + "/here.json"
-        helper = Helper()
-        helper.submit(allocate_a_map_page, helper_out, what="page").wait()
-        allocate_a_map_page(here_out)
-        print(json.dumps({"helper": json.load(open(helper_out)), "here": json.load(open(here_out))}))
+        f"""
+        out = sys.argv[1] + "/job.json"
+        helper = Helper(warm=WARM, room={room_mib} << 20)
+        rss = wait_for_rss(helper.pid, {room_mib} * 1024 + 10_000) if {room_mib} else 0
+        helper.submit(allocate_canvases, out, what="canvases").wait()
+        print(json.dumps({{"rss_kib": rss, **json.load(open(out))}}))
         """,
         tmp_path,
-        GLIBC_TUNABLES="",  # this process asks nothing of glibc, whatever the test runner's does
     )
-    helper, here = result["helper"], result["here"]
-    assert isinstance(helper, dict) and isinstance(here, dict)
-    assert helper["during"] > helper["before"]
-    assert here["during"] == here["before"]
+    pages = result["bytes"] // os.sysconf("SC_PAGESIZE")
+    if room_mib:
+        assert result["rss_kib"] >= room_mib * 1024 + 10_000
+        assert result["faults"] < 0.1 * pages
+    else:
+        assert result["faults"] > 0.9 * pages
+
+
+@needs_spawn
+def test_a_helper_stops_faulting_in_its_room_when_the_job_comes(tmp_path: Path) -> None:
+    """A room of 2 GiB: the job, sent at once, runs at once, and the helper stopped touching its
+    room a few MiB after the job came (its highest resident memory, the kernel's count, far
+    below)."""
+    result = run(
+        """
+        out = sys.argv[1] + "/job.json"
+        helper = Helper(warm=WARM, room=2 << 30)
+        began = time.monotonic()
+        helper.submit(record, out, what="job.json").wait()
+        print(json.dumps({"seconds": time.monotonic() - began, **json.load(open(out))}))
+        """,
+        tmp_path,
+    )
+    assert result["seconds"] < 20
+    assert 0 < result["peak_rss_kib"] < 512 * 1024  # under a quarter of the 2 GiB asked
 
 
 @needs_spawn

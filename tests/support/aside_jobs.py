@@ -36,9 +36,30 @@ def record(path: str) -> None:
                 "warmed": WARMED,
                 "modules": sorted(sys.modules),
                 "tunables": os.environ.get("GLIBC_TUNABLES"),
+                "rss_kib": _rss_kib(),
+                "peak_rss_kib": _rss_kib(field="VmHWM"),
             }
         )
     )
+
+
+def _rss_kib(pid: int | str = "self", field: str = "VmRSS") -> int:
+    """The resident memory (KiB) of process ``pid``: the kernel's count, /proc/PID/status VmRSS
+    (``field`` VmHWM: its highest so far; 0 where there is none)."""
+    try:
+        status = Path(f"/proc/{pid}/status").read_text()
+    except OSError:
+        return 0
+    return int(next(line for line in status.splitlines() if line.startswith(f"{field}:")).split()[1])
+
+
+def wait_for_rss(pid: int, at_least_kib: int, seconds: float = 60.0) -> int:
+    """The resident memory (KiB) of process ``pid`` once it reaches ``at_least_kib``, or when
+    ``seconds`` have passed."""
+    end = time.monotonic() + seconds
+    while (rss := _rss_kib(pid)) < at_least_kib and time.monotonic() < end:
+        time.sleep(0.01)
+    return rss
 
 
 def refuse(value: float) -> None:
@@ -49,27 +70,19 @@ def die() -> None:
     os.kill(os.getpid(), signal.SIGKILL)
 
 
-def _large_advised_mappings() -> int:
-    """Anonymous mappings of 24 MiB or more the kernel marks advised for huge pages ("hg")."""
-    count, size_kib = 0, 0
-    with open("/proc/self/smaps") as smaps:
-        for line in smaps:
-            if line.startswith("Size:"):
-                size_kib = int(line.split()[1])
-            elif line.startswith("VmFlags:") and size_kib >= 24 * 1024 and "hg" in line.split()[1:]:
-                count += 1
-    return count
+def allocate_canvases(path: str) -> None:
+    """Three canvases the size of the map's (Pillow, 10 MB each), one after the other, and the
+    page faults they took (the kernel's count, getrusage): the bytes of a canvas and the faults."""
+    import resource
 
-
-def allocate_a_map_page(path: str) -> None:
-    """A page as large as a whole map page supersampled (Pillow, 29 MB), and whether the kernel was
-    advised to back it with huge pages: the advised mappings before and while it exists."""
     from PIL import Image
 
-    before = _large_advised_mappings()
-    page = Image.new("RGB", (3445, 2119), "white")
-    during = _large_advised_mappings()
-    Path(path).write_text(json.dumps({"before": before, "during": during, "size": page.size}))
+    before = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
+    for _ in range(3):
+        canvas = Image.new("RGB", (1750, 1500), "white")
+        del canvas
+    faults = resource.getrusage(resource.RUSAGE_SELF).ru_minflt - before
+    Path(path).write_text(json.dumps({"faults": faults, "bytes": 1750 * 1500 * 4}))
 
 
 def draw_map_then_record(view: object, png: str, path: str) -> None:
