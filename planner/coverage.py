@@ -104,11 +104,16 @@ def splitmix64_uniform(count: int) -> NDArray[np.float64]:
     Output k (from 1) is a fixed mix of ``k`` times the golden ratio's 64-bit constant, so the
     whole run is a few operations on an array; numpy.random would give numbers as good, but it
     costs about 10 ms to import, a twentieth of a small plan's whole process."""
-    z = np.arange(1, count + 1, dtype=np.uint64) * np.uint64(0x9E3779B97F4A7C15)
-    z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
-    z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
-    z ^= z >> np.uint64(31)
-    return (z >> np.uint64(11)).astype(np.float64) * 2.0**-53
+    z = np.arange(1, count + 1, dtype=np.uint64)
+    shifted = np.empty_like(z)  # in place, one scratch array: new memory is slow to touch
+    z *= np.uint64(0x9E3779B97F4A7C15)
+    for shift, multiplier in ((30, 0xBF58476D1CE4E5B9), (27, 0x94D049BB133111EB)):
+        z ^= np.right_shift(z, np.uint64(shift), out=shifted)
+        z *= np.uint64(multiplier)
+    z ^= np.right_shift(z, np.uint64(31), out=shifted)
+    uniform = np.right_shift(z, np.uint64(11), out=z).astype(np.float64)
+    uniform *= 2.0**-53
+    return uniform
 
 
 def grid_points(area_uv: Polygon | MultiPolygon, cell_m: float) -> tuple[NDArray[np.float64], float]:
@@ -123,7 +128,9 @@ def grid_points(area_uv: Polygon | MultiPolygon, cell_m: float) -> tuple[NDArray
     gu, gv = np.meshgrid(us, vs)
     # One point at random in each cell (a fixed seed: the same plan gives the same figures), so
     # that the regular pattern of the frames cannot alias with the grid.
-    jitter = (splitmix64_uniform(2 * gu.size).reshape(2, gu.size) - 0.5) * cell_m
+    jitter = splitmix64_uniform(2 * gu.size).reshape(2, gu.size)
+    jitter -= 0.5
+    jitter *= cell_m
     gu, gv = gu.ravel() + jitter[0], gv.ravel() + jitter[1]
     inside = shapely.contains_xy(area_uv, gu, gv)
     return np.column_stack([gu[inside], gv[inside]]), cell_m
