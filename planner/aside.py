@@ -3,8 +3,10 @@
 ``sfap plan`` spends a third of a small plan drawing and encoding map.png, work that needs only
 the plan and ends in its own file. :func:`start_aside` runs such a job in a child forked from
 this process (it inherits the plan, the imports and the staging folder at no cost: the pages are
-shared until written) while the parent writes the other files; :meth:`Aside.wait` reaps it and
-raises the child's error, if any, in the parent, as if the job had run there. A thread would not
+shared until written) while the parent writes the other files; :meth:`Aside.wait` waits for its
+word and raises the child's error, if any, in the parent, as if the job had run there (a child
+that says its job is done is reaped once it has exited, without waiting for the kernel to take
+down its memory: :func:`reap_exited`). A thread would not
 do: drawing and encoding hold the interpreter lock (tried: no gain, BENCHMARKS.md).
 
 The child is forked only where that is safe and useful: on a POSIX system, in a process with one
@@ -36,6 +38,7 @@ job comes. Spawned rather than forked for two reasons:
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import importlib
 import logging
@@ -101,7 +104,8 @@ class Aside:
 
     def wait(self) -> None:
         """Wait for the job to end; raise what it raised (in the child: the same exception,
-        unpickled; a child killed by a signal: an OSError naming the job and the signal)."""
+        unpickled; a child killed by a signal: an OSError naming the job and the signal). A child
+        that reported its job done is not waited for to exit (:func:`reap_exited`)."""
         if self._send_fd is not None or self._unsent is not None:
             self.cancel()
             raise RuntimeError(f"{self.what}: waited on before it was sent its value (Aside.send)")
@@ -114,6 +118,11 @@ class Aside:
         with os.fdopen(self._read_fd, "rb") as pipe:
             self._read_fd = None
             report = pipe.read()
+        if report == _DONE:  # its job is done: its exit is not waited for (reap_exited)
+            _exiting.add(self.pid)
+            self.pid = None
+            reap_exited()
+            return
         _, status = os.waitpid(self.pid, 0)
         self.pid = None
         if report:
@@ -173,9 +182,16 @@ def start_aside(job: Callable[[], object], what: str) -> Aside:
     return Aside(what, pid, read_fd, None)
 
 
+#: A child's report of a job done (a pickle, or an error's text, is never this byte alone).
+_DONE = b"\x00"
+
+
 def _report_and_exit(write_fd: int, run: Callable[[], object]) -> NoReturn:
-    """In a child: ``run()``, its error pickled into ``write_fd``, then out without cleaning up
-    (no atexit handlers, no flush of the parent's buffers, no finally block of the parent's)."""
+    """In a child: ``run()``, its error pickled into ``write_fd`` (or :data:`_DONE`), then out
+    without cleaning up (no atexit handlers, no flush of the parent's buffers, no finally block of
+    the parent's). The report's pipe and the standard streams are closed before the exit: the
+    parent, and whoever reads this process's output, need not wait for the kernel to take down
+    its memory (some milliseconds for the map's 90 MB)."""
     status = 0
     try:
         try:
@@ -187,8 +203,33 @@ def _report_and_exit(write_fd: int, run: Callable[[], object]) -> NoReturn:
             except Exception:
                 report = f"{type(error).__name__}: {error}".encode()
             _write_all(write_fd, report)  # the parent reads it all when it waits
+        else:
+            _write_all(write_fd, _DONE)
+        for fd in (write_fd, 0, 1, 2):
+            with contextlib.suppress(OSError):
+                os.close(fd)
     finally:
         os._exit(status)
+
+
+#: Children whose job is done (their report said so) and that may still be exiting.
+_exiting: set[int] = set()
+
+
+def reap_exited(*, block: bool = False) -> None:
+    """Reap the children whose job was done (:meth:`Aside.wait` does not wait for their exit):
+    those that have exited, or (``block``) all of them. Done at each wait and at this process's
+    normal exit; a process that ends with ``os._exit`` leaves them to the system."""
+    for pid in list(_exiting):
+        try:
+            reaped, _ = os.waitpid(pid, 0 if block else os.WNOHANG)
+        except ChildProcessError:  # reaped elsewhere
+            reaped = pid
+        if reaped:
+            _exiting.discard(pid)
+
+
+atexit.register(reap_exited, block=True)
 
 
 #: Asked of glibc in the helper (see the module's text): allocations up to 32 MiB (glibc's

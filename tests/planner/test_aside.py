@@ -232,6 +232,68 @@ def test_close_and_cancel_stop_the_child_at_once_and_reap_it(tmp_path: Path) -> 
     assert result["gone"] == [True, True]
 
 
+@needs_fork
+def test_a_child_reports_its_job_done_or_its_error(tmp_path: Path) -> None:
+    """What a child says on its report's pipe: one byte (planner.aside._DONE) for a job done, the
+    pickled error for one that failed."""
+    result = run(
+        """
+        import pickle
+        from planner import aside
+
+        def child(run):
+            read_fd, write_fd = os.pipe()
+            pid = os.fork()
+            if pid == 0:
+                os.close(read_fd)
+                aside._report_and_exit(write_fd, run)
+            os.close(write_fd)
+            with os.fdopen(read_fd, "rb") as pipe:
+                report = pipe.read()
+            os.waitpid(pid, 0)
+            return report
+
+        done = child(lambda: None)
+        failed = pickle.loads(child(lambda: refuse(-1.0)))
+        print(json.dumps({"done": done.hex(), "failed": str(failed), "is_done": done == aside._DONE}))
+        """,
+        tmp_path,
+    )
+    assert result == {
+        "done": "00",
+        "failed": "gsd_cm = -1.0: must be above 0; give the GSD in centimetres",
+        "is_done": True,
+    }
+
+
+@needs_spawn
+def test_a_helper_done_is_not_waited_for_to_exit_and_is_reaped_later(tmp_path: Path) -> None:
+    """wait() returns on the helper's word that its job is done; the helper, which may still be
+    exiting then, is reaped by the next wait or reap_exited (here made to wait): no zombie is
+    left, and a helper that did not say so (killed) is waited for as before."""
+    result = run(
+        """
+        from planner import aside
+        out = sys.argv[1] + "/job.json"
+        helper = Helper(warm=WARM)
+        pid = helper.pid
+        helper.submit(record, out, what="job.json").wait()
+        aside.reap_exited(block=True)
+        try:
+            os.waitpid(pid, os.WNOHANG)
+            gone = False
+        except ChildProcessError:
+            gone = True
+        print(json.dumps({"pid": pid, "ran_in": json.load(open(out))["pid"], "gone": gone,
+                          "exiting": sorted(aside._exiting)}))
+        """,
+        tmp_path,
+    )
+    assert result["pid"] == result["ran_in"]
+    assert result["gone"] is True
+    assert result["exiting"] == []
+
+
 @needs_spawn
 def test_with_a_thread_running_a_helper_still_runs_the_job_and_a_fork_does_not(tmp_path: Path) -> None:
     """A spawned helper is safe beside other threads; a fork is not, so start_aside runs in place."""
