@@ -286,7 +286,8 @@ class Helper:
         job_read, job_write = os.pipe()
         report_read, report_write = os.pipe()
         _widen(job_write)
-        argv = [sys.executable, "-c", _HELPER_CODE, str(job_read), str(report_write), warm or "", str(room), *sys.path]
+        ends = [str(job_read), str(report_write)]
+        argv = [sys.executable, "-c", _HELPER_CODE, *ends, warm or "", str(room), *sys.path]
         try:
             os.set_inheritable(job_read, True)  # the child's two ends, and only those
             os.set_inheritable(report_write, True)

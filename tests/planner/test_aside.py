@@ -28,7 +28,9 @@ PRELUDE = textwrap.dedent(
     import json, os, signal, sys, threading, time
     from planner.aside import Helper, can_fork, start_aside
     from planner.errors import InputError
-    from tests.support.aside_jobs import allocate_canvases, begin_then_record, die, record, refuse, wait_for_rss
+    from tests.support.aside_jobs import (
+        allocate_canvases, begin_then_record, die, record, refuse, wait_for_rss
+    )
 
     def wait_for(path, seconds=30.0):
         end = time.monotonic() + seconds

@@ -18,7 +18,6 @@ from planner.coverage import boundary_points, grid_points, splitmix64_uniform, v
 from planner.exposure import FrameRectangle
 from planner.lines import Segment
 
-
 REPO = Path(__file__).resolve().parents[2]
 
 
@@ -145,7 +144,7 @@ def test_each_grid_point_lies_in_its_own_cell_at_an_even_spread() -> None:
     points, got_cell = grid_points(area, cell)
     assert got_cell == cell and len(points) == (600 // 2) * (400 // 2)
     col, row = np.floor(points[:, 0] / cell), np.floor(points[:, 1] / cell)
-    assert len(set(zip(col.tolist(), row.tolist()))) == len(points)  # one per cell
+    assert len(set(zip(col.tolist(), row.tolist(), strict=True))) == len(points)  # one per cell
     du, dv = points[:, 0] / cell - col, points[:, 1] / cell - row
     assert (du >= 0).all() and (du < 1).all() and (dv >= 0).all() and (dv < 1).all()
     counts = np.histogram2d(du, dv, bins=5, range=[[0, 1], [0, 1]])[0]
@@ -159,14 +158,15 @@ def test_planning_does_not_import_numpy_random() -> None:
     """The grid's jitter comes without numpy.random (10 ms to import, a twentieth of a small plan's
     process): `python -X importtime` of the planning of the gully names every module imported."""
     script = (
-        "from pathlib import Path; from planner.spec import load_spec; from planner.survey import plan_survey; "
+        "from pathlib import Path; from planner.spec import load_spec; "
+        "from planner.survey import plan_survey; "
         "plan = plan_survey(load_spec(Path('missions/bardenas-gully.toml'))); "
         "assert plan.summary.stereo_seen_2_pct > 99"
     )
-    done = subprocess.run(
-        [sys.executable, "-X", "importtime", "-c", script], cwd=REPO, capture_output=True, text=True, timeout=120
-    )
+    command = [sys.executable, "-X", "importtime", "-c", script]
+    done = subprocess.run(command, cwd=REPO, capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr[-2000:]
-    imported = {line.split("|")[-1].strip() for line in done.stderr.splitlines() if line.startswith("import time:")}
+    lines = done.stderr.splitlines()
+    imported = {line.split("|")[-1].strip() for line in lines if line.startswith("import time:")}
     assert "planner.coverage" in imported and "shapely" in imported
     assert "numpy.random" not in imported
