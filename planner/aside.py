@@ -20,7 +20,7 @@ not a fork) that imports and loads what the job will need (``warm``, named: Pill
 writer and the map's fonts, 25-30 ms of a small plan) while this process is still planning, then
 waits for the job (a module-level function and its arguments, pickled through a pipe: a small
 plan in about a millisecond) and runs it at once. While it waits it faults in the memory the job
-will use (``room``: the map's canvases, 30-40 MB), a few MiB at a time, and stops as soon as the
+will use (``room_bytes``: the map's canvases, 30-40 MB), a few MiB at a time, and stops as soon as the
 job comes. Spawned rather than forked for two reasons:
 
 - glibc reads its tunables only when a process starts, and the helper is started asking malloc to
@@ -271,12 +271,12 @@ def helper_environment() -> dict[str, str]:
 
 class Helper:
     """A child interpreter started now (:func:`can_spawn`) that runs ``warm`` at once (a function
-    named ``"module:function"``), faults in up to ``room`` bytes of memory for the job while it
+    named ``"module:function"``), faults in up to ``room_bytes`` bytes of memory for the job while it
     waits for it (glibc only: elsewhere malloc would give the memory back), then runs one job
     sent later by :meth:`submit`; where none can be started, nothing is, and the job runs when
     submitted (:func:`start_aside`). :meth:`close` when no job will come (always safe)."""
 
-    def __init__(self, warm: str | None = None, room: int = 0) -> None:
+    def __init__(self, warm: str | None = None, room_bytes: int = 0) -> None:
         self.pid: int | None = None
         self._job_fd: int | None = None
         self._report_fd: int | None = None
@@ -287,7 +287,7 @@ class Helper:
         report_read, report_write = os.pipe()
         _widen(job_write)
         ends = [str(job_read), str(report_write)]
-        argv = [sys.executable, "-c", _HELPER_CODE, *ends, warm or "", str(room), *sys.path]
+        argv = [sys.executable, "-c", _HELPER_CODE, *ends, warm or "", str(room_bytes), *sys.path]
         try:
             os.set_inheritable(job_read, True)  # the child's two ends, and only those
             os.set_inheritable(report_write, True)
@@ -380,20 +380,20 @@ def _importable(job: Callable[..., object]) -> bool:
     return module not in (None, "__main__") and "<" not in name and "." not in name
 
 
-def _serve_spawned(job_fd: int, report_fd: int, warm: str, room: int) -> NoReturn:
+def _serve_spawned(job_fd: int, report_fd: int, warm: str, room_bytes: int) -> NoReturn:
     """The helper interpreter's program (_HELPER_CODE)."""
-    _report_and_exit(report_fd, lambda: _serve(job_fd, warm, room))
+    _report_and_exit(report_fd, lambda: _serve(job_fd, warm, room_bytes))
 
 
-def _serve(job_fd: int, warm: str, room: int) -> None:
+def _serve(job_fd: int, warm: str, room_bytes: int) -> None:
     """The helper's life: warm up, fault in its room until the job comes, read one job (nothing:
     leave), run it (with ``receive`` when it was started: Helper.start)."""
     if warm:
         with contextlib.suppress(Exception):  # only a head start: the job says what fails
             module, name = warm.split(":")
             getattr(importlib.import_module(module), name)()
-    if room > 0 and _glibc():
-        _fault_in(room, job_fd)
+    if room_bytes > 0 and _glibc():
+        _fault_in(room_bytes, job_fd)
     with os.fdopen(job_fd, "rb") as pipe:
         try:
             job, args, more = _read_message(pipe)
@@ -414,11 +414,11 @@ def _glibc() -> bool:
 
 
 #: The room is faulted in this many bytes at a time, the job's pipe looked at between them.
-_ROOM_STEP = 4 << 20
+_ROOM_STEP_BYTES = 4 << 20
 
 
-def _fault_in(room: int, job_fd: int) -> None:
-    """Touch every page of up to ``room`` bytes of new memory, :data:`_ROOM_STEP` at a time,
+def _fault_in(room_bytes: int, job_fd: int) -> None:
+    """Touch every page of up to ``room_bytes`` of new memory, :data:`_ROOM_STEP_BYTES` at a time,
     until all is touched or something can be read from ``job_fd`` (the job, or the end of the
     pipe), then free it: malloc keeps it (KEEP_MEMORY_TUNABLES) for the job's allocations."""
     import select
@@ -427,9 +427,9 @@ def _fault_in(room: int, job_fd: int) -> None:
     poller = select.poll()
     poller.register(job_fd, select.POLLIN)
     steps: list[bytearray] = []
-    while len(steps) * _ROOM_STEP < room and not poller.poll(0):
-        step = bytearray(_ROOM_STEP)  # calloc: fresh memory is not written to yet
-        step[::page] = bytes(len(range(0, _ROOM_STEP, page)))
+    while len(steps) * _ROOM_STEP_BYTES < room_bytes and not poller.poll(0):
+        step = bytearray(_ROOM_STEP_BYTES)  # calloc: fresh memory is not written to yet
+        step[::page] = bytes(len(range(0, _ROOM_STEP_BYTES, page)))
         steps.append(step)
     del steps
 

@@ -18,7 +18,7 @@ from ..common import dumps_json, echo_table, json_option, overwrite_option, prog
 MAP_WARM_UP = "planner.maprender:prepare"
 #: Memory map.png's helper faults in while it waits for the plan (planner.aside.Helper): its
 #: canvases, about 26 MB for the gully's map and 36 MB for a square kilometre's, with room to spare.
-MAP_ROOM = 48 << 20
+MAP_ROOM_BYTES = 48 << 20
 
 if TYPE_CHECKING:  # the planner is imported once map.png's helper is started (command)
     from planner.estimate import PlanEstimate
@@ -136,7 +136,7 @@ def command(
         # imports the planner: planner.maprender.prepare), and faults in the memory the map will
         # use; then it draws the map (sent as its view of the plan, planner.mapview, as soon as
         # the mission is built) while this one makes the summary and writes the other files.
-        with Helper(warm=MAP_WARM_UP, room=MAP_ROOM) as helper:
+        with Helper(warm=MAP_WARM_UP, room_bytes=MAP_ROOM_BYTES) as helper:
             from planner.plan_run import plan_spec
 
             run = plan_spec(

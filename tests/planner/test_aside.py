@@ -134,7 +134,7 @@ def test_the_job_finds_its_memory_already_faulted_in(tmp_path: Path, room_mib: i
     result = run(
         f"""
         out = sys.argv[1] + "/job.json"
-        helper = Helper(warm=WARM, room={room_mib} << 20)
+        helper = Helper(warm=WARM, room_bytes={room_mib} << 20)
         rss = wait_for_rss(helper.pid, {room_mib} * 1024 + 10_000) if {room_mib} else 0
         helper.submit(allocate_canvases, out, what="canvases").wait()
         print(json.dumps({{"rss_kib": rss, **json.load(open(out))}}))
@@ -157,7 +157,7 @@ def test_a_helper_stops_faulting_in_its_room_when_the_job_comes(tmp_path: Path) 
     result = run(
         """
         out = sys.argv[1] + "/job.json"
-        helper = Helper(warm=WARM, room=2 << 30)
+        helper = Helper(warm=WARM, room_bytes=2 << 30)
         began = time.monotonic()
         helper.submit(record, out, what="job.json").wait()
         print(json.dumps({"seconds": time.monotonic() - began, **json.load(open(out))}))
